@@ -1,0 +1,2 @@
+//! Voxel benches.
+fn main() {}

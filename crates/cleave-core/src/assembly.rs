@@ -1,0 +1,170 @@
+//! Sparse patterns of 3×3-blocked symmetric matrices, built once per epoch, and the CSC matrix
+//! whose values the kernels write through precomputed positions (no search, no allocation per
+//! step).
+//!
+//! Layout: node `J` has the sorted neighbour list `N_J` (nodes sharing a block or a coupling group
+//! with it, itself included). Scalar column `3J + c` holds rows `3I + r` for `I ∈ N_J`, `r = 0..3`
+//! in that order, so entry `(3I + r, 3J + c)` sits at `col_ptr[3J + c] + 3·rank_J(I) + r`. Both
+//! triangles are stored: Cholesky reads the lower one, the matrix–vector product all of it.
+
+use crate::Real;
+use rayon::prelude::*;
+
+/// Sparsity pattern of a symmetric matrix with 3×3 node blocks.
+#[derive(Clone, Debug)]
+pub struct AssemblyPattern {
+    num_nodes: usize,
+    neighbour_offsets: Vec<usize>,
+    neighbours: Vec<u32>,
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+}
+
+impl AssemblyPattern {
+    /// The pattern coupling every pair of nodes that appear together in one of `groups`.
+    /// Node indices must be `< num_nodes` (checked; a violation is a backend bug, so it panics
+    /// with the offending index).
+    pub fn from_groups<'a>(num_nodes: usize, groups: impl Iterator<Item = &'a [u32]>) -> Self {
+        let mut pairs: Vec<Vec<u32>> = vec![Vec::new(); num_nodes];
+        for group in groups {
+            for &j in group {
+                assert!((j as usize) < num_nodes, "node {j} out of range 0..{num_nodes}");
+                pairs[j as usize].extend_from_slice(group);
+            }
+        }
+        for (j, list) in pairs.iter_mut().enumerate() {
+            list.push(j as u32);
+            list.sort_unstable();
+            list.dedup();
+        }
+        let mut neighbour_offsets = Vec::with_capacity(num_nodes + 1);
+        neighbour_offsets.push(0);
+        let mut neighbours = Vec::new();
+        for list in &pairs {
+            neighbours.extend_from_slice(list);
+            neighbour_offsets.push(neighbours.len());
+        }
+        drop(pairs);
+        let nnz = 9 * neighbours.len();
+        let mut col_ptr = Vec::with_capacity(3 * num_nodes + 1);
+        let mut row_idx = Vec::with_capacity(nnz);
+        col_ptr.push(0);
+        for j in 0..num_nodes {
+            let list = &neighbours[neighbour_offsets[j]..neighbour_offsets[j + 1]];
+            for _c in 0..3 {
+                for &i in list {
+                    for r in 0..3 {
+                        row_idx.push(3 * i as usize + r);
+                    }
+                }
+                col_ptr.push(row_idx.len());
+            }
+        }
+        Self { num_nodes, neighbour_offsets, neighbours, col_ptr, row_idx }
+    }
+
+    /// Number of 3-vector nodes (the matrix is `3n × 3n`).
+    pub fn num_nodes(&self) -> usize {
+        self.num_nodes
+    }
+
+    /// Scalar dimension `3n`.
+    pub fn dim(&self) -> usize {
+        3 * self.num_nodes
+    }
+
+    /// Number of stored scalar entries (both triangles).
+    pub fn nnz(&self) -> usize {
+        self.row_idx.len()
+    }
+
+    /// CSC column pointers (length `3n + 1`).
+    pub fn col_ptr(&self) -> &[usize] {
+        &self.col_ptr
+    }
+
+    /// CSC row indices, sorted within each column.
+    pub fn row_idx(&self) -> &[usize] {
+        &self.row_idx
+    }
+
+    /// Rank of node `i` in the neighbour list of node `j`, if they are coupled.
+    pub fn rank(&self, i: u32, j: u32) -> Option<u32> {
+        let list = &self.neighbours[self.neighbour_offsets[j as usize]..self.neighbour_offsets[j as usize + 1]];
+        list.binary_search(&i).ok().map(|r| r as u32)
+    }
+
+    /// Position of scalar entry `(3i + r, 3j + c)` given `rank = rank(i, j)`.
+    #[inline]
+    pub fn position(&self, rank: u32, j: u32, r: usize, c: usize) -> usize {
+        self.col_ptr[3 * j as usize + c] + 3 * rank as usize + r
+    }
+
+    /// Adds the 3×3 block `m` (row-major `m[r][c]`) times `scale` at node pair `(i, j)` whose rank
+    /// is known.
+    #[inline]
+    pub fn add_block(&self, values: &mut [Real], rank: u32, j: u32, m: &nalgebra::Matrix3<Real>, scale: Real) {
+        for c in 0..3 {
+            let base = self.col_ptr[3 * j as usize + c] + 3 * rank as usize;
+            for r in 0..3 {
+                values[base + r] += scale * m[(r, c)];
+            }
+        }
+    }
+}
+
+/// A CSC matrix on an [`AssemblyPattern`] (values only; the pattern is shared by reference).
+#[derive(Clone, Debug)]
+pub struct CscMatrix {
+    /// Values aligned with the pattern's `row_idx`.
+    pub values: Vec<Real>,
+}
+
+impl CscMatrix {
+    /// A zero matrix on `pattern`.
+    pub fn zeros(pattern: &AssemblyPattern) -> Self {
+        Self { values: vec![0.0; pattern.nnz()] }
+    }
+
+    /// `out = A x` for the symmetric matrix stored in full: each output entry gathers its column
+    /// (`(A x)_j = Σ_i A_ij x_i = Σ_i A_ji x_i`), so rows are independent and run in parallel.
+    pub fn mul_vec(&self, pattern: &AssemblyPattern, x: &[Real], out: &mut [Real]) {
+        let col_ptr = pattern.col_ptr();
+        let row_idx = pattern.row_idx();
+        out.par_iter_mut().enumerate().for_each(|(j, o)| {
+            let mut sum = 0.0;
+            for p in col_ptr[j]..col_ptr[j + 1] {
+                sum += self.values[p] * x[row_idx[p]];
+            }
+            *o = sum;
+        });
+    }
+
+    /// Value at scalar `(row, col)`, zero if outside the pattern (a binary search: for tests).
+    pub fn get(&self, pattern: &AssemblyPattern, row: usize, col: usize) -> Real {
+        let range = pattern.col_ptr()[col]..pattern.col_ptr()[col + 1];
+        match pattern.row_idx()[range.clone()].binary_search(&row) {
+            Ok(k) => self.values[range.start + k],
+            Err(_) => 0.0,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pattern_couples_exactly_the_grouped_nodes() {
+        // chain 0-1-2 and an isolated node 3
+        let groups: Vec<Vec<u32>> = vec![vec![0, 1], vec![1, 2]];
+        let p = AssemblyPattern::from_groups(4, groups.iter().map(|g| g.as_slice()));
+        assert_eq!(p.nnz(), 9 * (2 + 3 + 2 + 1));
+        assert_eq!(p.rank(2, 0), None);
+        assert_eq!(p.rank(2, 1), Some(2));
+        // the position formula lands on the right row
+        let pos = p.position(p.rank(2, 1).unwrap(), 1, 1, 2);
+        assert_eq!(p.row_idx()[pos], 3 * 2 + 1);
+        assert!(pos >= p.col_ptr()[3 + 2] && pos < p.col_ptr()[3 + 3]);
+    }
+}

@@ -1,0 +1,351 @@
+//! The stiffness as a list of warped blocks over a library of rest matrices, and the shared
+//! kernels on it (derivation: `docs/math/corotated-integrator.md`):
+//!
+//! - internal force   `f_b = −R K (Rᵀ x_b − X_b)`
+//! - elastic energy   `E_b = ½ (Rᵀ x_b − X_b)ᵀ K (Rᵀ x_b − X_b)`
+//! - stiffness action `y_b = s · R K Rᵀ dx_b`
+//! - assembly         `A += s · Σ_b R K Rᵀ`
+//!
+//! `R` is block-diagonal with the block's frame rotation on every node (identity for blocks
+//! without a frame, such as DG penalty terms).
+
+use crate::assembly::AssemblyPattern;
+use crate::scatter::ScatterPlan;
+use crate::{Matrix3, Real};
+use nalgebra::DMatrix;
+
+/// Largest number of nodes one block may couple (a DG face block of two quadratic elements has
+/// 20); bounds the stack scratch of the kernels.
+pub const MAX_BLOCK_NODES: usize = 32;
+
+const NO_FRAME: u32 = u32::MAX;
+
+/// A malformed block (a backend bug, reported rather than panicking inside a kernel).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum BlockSetError {
+    /// Rest matrix of the wrong shape or not symmetric.
+    #[error("rest matrix {index} is {rows}x{cols}, must be square, a multiple of 3 and symmetric")]
+    BadRestMatrix {
+        /// index it would get
+        index: usize,
+        /// its rows
+        rows: usize,
+        /// its columns
+        cols: usize,
+    },
+    /// Block whose node count does not match its rest matrix, or too many nodes.
+    #[error("block {block} has {nodes} nodes but rest matrix {rest} is for {expected}")]
+    NodeCount {
+        /// block index
+        block: usize,
+        /// nodes given
+        nodes: usize,
+        /// rest matrix id
+        rest: u32,
+        /// nodes the rest matrix expects
+        expected: usize,
+    },
+    /// Node index out of range.
+    #[error("block {block} names node {node}, but there are only {num_nodes}")]
+    NodeOutOfRange {
+        /// block index
+        block: usize,
+        /// the node
+        node: u32,
+        /// node count
+        num_nodes: usize,
+    },
+}
+
+/// One block as seen by a kernel.
+#[derive(Clone, Copy, Debug)]
+pub struct BlockRef<'a> {
+    /// Global node indices, in the rest matrix's order.
+    pub nodes: &'a [u32],
+    /// The rest stiffness (`3·nodes × 3·nodes`).
+    pub rest: &'a DMatrix<Real>,
+    /// Index of the rotation frame warping this block, if any.
+    pub frame: Option<u32>,
+}
+
+/// Blocks `{nodes, rest matrix id, frame}` over a library of rest matrices.
+#[derive(Debug)]
+pub struct BlockSet {
+    num_nodes: usize,
+    rest_matrices: Vec<DMatrix<Real>>,
+    offsets: Vec<u32>,
+    nodes: Vec<u32>,
+    rest_ids: Vec<u32>,
+    frames: Vec<u32>,
+    plan: ScatterPlan,
+}
+
+/// Builder for a [`BlockSet`]; `finish` checks everything once.
+#[derive(Debug, Default)]
+pub struct BlockSetBuilder {
+    rest_matrices: Vec<DMatrix<Real>>,
+    offsets: Vec<u32>,
+    nodes: Vec<u32>,
+    rest_ids: Vec<u32>,
+    frames: Vec<u32>,
+}
+
+impl BlockSetBuilder {
+    /// An empty builder.
+    pub fn new() -> Self {
+        Self { offsets: vec![0], ..Default::default() }
+    }
+
+    /// Adds a rest matrix to the library and returns its id.
+    pub fn add_rest_matrix(&mut self, k: DMatrix<Real>) -> Result<u32, BlockSetError> {
+        let index = self.rest_matrices.len();
+        let bad = k.nrows() != k.ncols()
+            || k.nrows() % 3 != 0
+            || k.nrows() / 3 > MAX_BLOCK_NODES
+            || (&k - k.transpose()).amax() > 1e-12 * k.amax().max(Real::MIN_POSITIVE);
+        if bad {
+            return Err(BlockSetError::BadRestMatrix { index, rows: k.nrows(), cols: k.ncols() });
+        }
+        self.rest_matrices.push(k);
+        Ok(index as u32)
+    }
+
+    /// Appends a block.
+    pub fn push(&mut self, nodes: &[u32], rest: u32, frame: Option<u32>) {
+        self.nodes.extend_from_slice(nodes);
+        self.offsets.push(self.nodes.len() as u32);
+        self.rest_ids.push(rest);
+        self.frames.push(frame.unwrap_or(NO_FRAME));
+    }
+
+    /// Validates and plans the parallel scatter for a mesh of `num_nodes` nodes.
+    pub fn finish(self, num_nodes: usize) -> Result<BlockSet, BlockSetError> {
+        let num_blocks = self.rest_ids.len();
+        for b in 0..num_blocks {
+            let nodes = &self.nodes[self.offsets[b] as usize..self.offsets[b + 1] as usize];
+            let rest = self.rest_ids[b];
+            let expected = self.rest_matrices.get(rest as usize).map_or(0, |k| k.nrows() / 3);
+            if nodes.len() != expected {
+                return Err(BlockSetError::NodeCount { block: b, nodes: nodes.len(), rest, expected });
+            }
+            if let Some(&node) = nodes.iter().find(|&&n| n as usize >= num_nodes) {
+                return Err(BlockSetError::NodeOutOfRange { block: b, node, num_nodes });
+            }
+        }
+        let offsets = &self.offsets;
+        let all_nodes = &self.nodes;
+        let plan = ScatterPlan::new(num_blocks, 3 * num_nodes, |b| {
+            let nodes = &all_nodes[offsets[b] as usize..offsets[b + 1] as usize];
+            let lo = nodes.iter().min().map_or(0, |&n| 3 * n as usize);
+            let hi = nodes.iter().max().map_or(0, |&n| 3 * n as usize + 3);
+            lo..hi
+        });
+        Ok(BlockSet {
+            num_nodes,
+            rest_matrices: self.rest_matrices,
+            offsets: self.offsets,
+            nodes: self.nodes,
+            rest_ids: self.rest_ids,
+            frames: self.frames,
+            plan,
+        })
+    }
+}
+
+impl BlockSet {
+    /// Number of blocks.
+    pub fn len(&self) -> usize {
+        self.rest_ids.len()
+    }
+
+    /// True when there are no blocks.
+    pub fn is_empty(&self) -> bool {
+        self.rest_ids.is_empty()
+    }
+
+    /// Number of nodes of the mesh the blocks live on.
+    pub fn num_nodes(&self) -> usize {
+        self.num_nodes
+    }
+
+    /// The rest-matrix library.
+    pub fn rest_matrices(&self) -> &[DMatrix<Real>] {
+        &self.rest_matrices
+    }
+
+    /// Block `b`.
+    #[inline]
+    pub fn block(&self, b: usize) -> BlockRef<'_> {
+        let frame = self.frames[b];
+        BlockRef {
+            nodes: &self.nodes[self.offsets[b] as usize..self.offsets[b + 1] as usize],
+            rest: &self.rest_matrices[self.rest_ids[b] as usize],
+            frame: (frame != NO_FRAME).then_some(frame),
+        }
+    }
+
+    /// Node lists of all blocks (for building an [`AssemblyPattern`]).
+    pub fn node_groups(&self) -> impl Iterator<Item = &[u32]> {
+        (0..self.len()).map(|b| &self.nodes[self.offsets[b] as usize..self.offsets[b + 1] as usize])
+    }
+
+    /// The plan the parallel kernels scatter with.
+    pub fn scatter_plan(&self) -> &ScatterPlan {
+        &self.plan
+    }
+
+    fn rotation(rotations: &[Matrix3<Real>], frame: Option<u32>) -> Matrix3<Real> {
+        frame.map_or_else(Matrix3::identity, |f| rotations[f as usize])
+    }
+
+    /// `out += −Σ_b R K (Rᵀ x_b − X_b)`: the internal elastic force at positions `x`.
+    pub fn add_internal_force(&self, rotations: &[Matrix3<Real>], x: &[Real], rest: &[Real], out: &mut [Real]) {
+        self.plan.scatter_add(out, |b, buf, base| {
+            let block = self.block(b);
+            let r = Self::rotation(rotations, block.frame);
+            let n = block.nodes.len();
+            let mut local = [0.0; 3 * MAX_BLOCK_NODES];
+            for (a, &node) in block.nodes.iter().enumerate() {
+                let i = 3 * node as usize;
+                let p = r.tr_mul(&nalgebra::Vector3::new(x[i], x[i + 1], x[i + 2]));
+                for c in 0..3 {
+                    local[3 * a + c] = p[c] - rest[i + c];
+                }
+            }
+            apply_warped(block.rest, &r, &local[..3 * n], block.nodes, -1.0, buf, base);
+        });
+    }
+
+    /// `out += s · Σ_b R K Rᵀ dx_b`.
+    pub fn add_stiffness_action(&self, rotations: &[Matrix3<Real>], dx: &[Real], scale: Real, out: &mut [Real]) {
+        self.plan.scatter_add(out, |b, buf, base| {
+            let block = self.block(b);
+            let r = Self::rotation(rotations, block.frame);
+            let n = block.nodes.len();
+            let mut local = [0.0; 3 * MAX_BLOCK_NODES];
+            for (a, &node) in block.nodes.iter().enumerate() {
+                let i = 3 * node as usize;
+                let p = r.tr_mul(&nalgebra::Vector3::new(dx[i], dx[i + 1], dx[i + 2]));
+                local[3 * a..3 * a + 3].copy_from_slice(p.as_slice());
+            }
+            apply_warped(block.rest, &r, &local[..3 * n], block.nodes, scale, buf, base);
+        });
+    }
+
+    /// `½ Σ_b (Rᵀ x_b − X_b)ᵀ K (Rᵀ x_b − X_b)`.
+    pub fn elastic_energy(&self, rotations: &[Matrix3<Real>], x: &[Real], rest: &[Real]) -> Real {
+        use rayon::prelude::*;
+        (0..self.len())
+            .into_par_iter()
+            .map(|b| {
+                let block = self.block(b);
+                let r = Self::rotation(rotations, block.frame);
+                let n = 3 * block.nodes.len();
+                let mut local = [0.0; 3 * MAX_BLOCK_NODES];
+                for (a, &node) in block.nodes.iter().enumerate() {
+                    let i = 3 * node as usize;
+                    let p = r.tr_mul(&nalgebra::Vector3::new(x[i], x[i + 1], x[i + 2]));
+                    for c in 0..3 {
+                        local[3 * a + c] = p[c] - rest[i + c];
+                    }
+                }
+                let k = block.rest;
+                let mut e = 0.0;
+                for col in 0..n {
+                    let mut kv = 0.0;
+                    for row in 0..n {
+                        kv += k[(row, col)] * local[row];
+                    }
+                    e += kv * local[col];
+                }
+                0.5 * e
+            })
+            .sum()
+    }
+
+    /// `diag[node] += s · Σ_b (R K Rᵀ)_{node,node}`: the 3×3 diagonal blocks (block Jacobi).
+    pub fn add_diagonal_blocks(&self, rotations: &[Matrix3<Real>], scale: Real, diag: &mut [Matrix3<Real>]) {
+        for b in 0..self.len() {
+            let block = self.block(b);
+            let r = Self::rotation(rotations, block.frame);
+            for (a, &node) in block.nodes.iter().enumerate() {
+                let kaa: Matrix3<Real> = block.rest.fixed_view::<3, 3>(3 * a, 3 * a).into_owned();
+                diag[node as usize] += (r * kaa * r.transpose()) * scale;
+            }
+        }
+    }
+
+    /// `values += s · Σ_b R K Rᵀ` on `pattern` (which must contain every block's node pairs).
+    pub fn add_to_matrix(&self, rotations: &[Matrix3<Real>], scale: Real, pattern: &AssemblyPattern, ranks: &BlockRanks, values: &mut [Real]) {
+        for b in 0..self.len() {
+            let block = self.block(b);
+            let r = Self::rotation(rotations, block.frame);
+            let n = block.nodes.len();
+            let block_ranks = ranks.block(b);
+            for (bj, &j) in block.nodes.iter().enumerate() {
+                for (bi, _) in block.nodes.iter().enumerate() {
+                    let kij: Matrix3<Real> = block.rest.fixed_view::<3, 3>(3 * bi, 3 * bj).into_owned();
+                    let warped = r * kij * r.transpose();
+                    pattern.add_block(values, block_ranks[bj * n + bi], j, &warped, scale);
+                }
+            }
+        }
+    }
+}
+
+/// Per block, the rank of every (row node, column node) pair in the pattern: computed once per
+/// epoch so assembly never searches.
+#[derive(Clone, Debug)]
+pub struct BlockRanks {
+    offsets: Vec<usize>,
+    ranks: Vec<u32>,
+}
+
+impl BlockRanks {
+    /// Looks up every block's node pairs in `pattern`.
+    pub fn new(blocks: &BlockSet, pattern: &AssemblyPattern) -> Self {
+        let mut offsets = Vec::with_capacity(blocks.len() + 1);
+        offsets.push(0);
+        let mut ranks = Vec::new();
+        for b in 0..blocks.len() {
+            let nodes = blocks.block(b).nodes;
+            for &j in nodes {
+                for &i in nodes {
+                    ranks.push(pattern.rank(i, j).expect("assembly pattern must contain every block's node pairs"));
+                }
+            }
+            offsets.push(ranks.len());
+        }
+        Self { offsets, ranks }
+    }
+
+    /// Ranks of block `b`, column-node-major: `[j * n + i]`.
+    #[inline]
+    pub fn block(&self, b: usize) -> &[u32] {
+        &self.ranks[self.offsets[b]..self.offsets[b + 1]]
+    }
+}
+
+/// `buf[node] += s · R (K local)` for every node of the block.
+#[inline]
+fn apply_warped(k: &DMatrix<Real>, r: &Matrix3<Real>, local: &[Real], nodes: &[u32], scale: Real, buf: &mut [Real], base: usize) {
+    let n = local.len();
+    let mut y = [0.0; 3 * MAX_BLOCK_NODES];
+    // K is symmetric and stored column-major: (K v)_row = Σ_col K[col, row] v_col reads columns
+    // contiguously.
+    for (row, y_row) in y[..n].iter_mut().enumerate() {
+        let column = k.column(row);
+        let mut sum = 0.0;
+        for (kc, v) in column.iter().zip(local) {
+            sum += kc * v;
+        }
+        *y_row = sum;
+    }
+    for (a, &node) in nodes.iter().enumerate() {
+        let v = r * nalgebra::Vector3::new(y[3 * a], y[3 * a + 1], y[3 * a + 2]);
+        let i = 3 * node as usize - base;
+        buf[i] += scale * v[0];
+        buf[i + 1] += scale * v[1];
+        buf[i + 2] += scale * v[2];
+    }
+}

@@ -1,0 +1,179 @@
+//! The `Discretization` trait: what the integrator, the scene runner and the conformance suite
+//! know about a backend. Object safe; called a few times per time step on whole DOF vectors.
+
+use crate::blocks::BlockSet;
+use crate::embedding::{EmbedError, Embedding};
+use crate::mass::Mass;
+use crate::{Matrix3, Point3, Real, Vector3};
+
+/// What `write_rotations` found about the current deformation.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RotationStats {
+    /// Frames whose fitted deformation gradient has `det F ≤ 0`.
+    pub inverted: usize,
+}
+
+/// The displacement field and its gradient at one quadrature point of a backend's own rule.
+#[derive(Clone, Copy, Debug)]
+pub struct FieldSample {
+    /// Rest position of the point.
+    pub position: Point3<Real>,
+    /// Quadrature weight (volume measure).
+    pub weight: Real,
+    /// Displacement `u_h` at the point.
+    pub displacement: Vector3<Real>,
+    /// Displacement gradient `∇u_h`, `[i][j] = ∂u_i/∂X_j`.
+    pub gradient: Matrix3<Real>,
+}
+
+/// How state maps across a topology change.
+#[derive(Clone, Debug, PartialEq)]
+pub enum DofRemap {
+    /// Same DOFs as before.
+    Identity,
+    /// New node `k` copies old node `src[k]` (duplicated nodes of a cut or fracture).
+    Gather(Vec<u32>),
+}
+
+impl DofRemap {
+    /// Maps a DOF vector of the old epoch to the new one.
+    pub fn apply(&self, old: &[Real]) -> Vec<Real> {
+        match self {
+            DofRemap::Identity => old.to_vec(),
+            DofRemap::Gather(src) => {
+                let mut new = Vec::with_capacity(3 * src.len());
+                for &s in src {
+                    new.extend_from_slice(&old[3 * s as usize..3 * s as usize + 3]);
+                }
+                new
+            }
+        }
+    }
+}
+
+/// The outcome of a topology change.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TopologyChange {
+    /// The new epoch.
+    pub epoch: u64,
+    /// How to carry `x`, `v` and any history across.
+    pub remap: DofRemap,
+    /// Whether the stiffness pattern changed (so symbolic factorizations must be redone).
+    pub pattern_changed: bool,
+}
+
+/// A topology change that could not be carried out.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum TopologyError {
+    /// The request was malformed (e.g. a zero normal).
+    #[error("invalid topology request: {0}")]
+    Invalid(String),
+}
+
+/// A cutting surface.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CutSurface {
+    /// The plane through `point` with normal `normal` (need not be unit).
+    Plane {
+        /// a point on the plane
+        point: Point3<Real>,
+        /// its normal
+        normal: Vector3<Real>,
+    },
+}
+
+/// Backends that can be cut by a surface.
+pub trait Cuttable {
+    /// Cuts the material along `surface` at the rest configuration.
+    fn cut(&mut self, surface: &CutSurface) -> Result<TopologyChange, TopologyError>;
+}
+
+/// Backends that fracture under tensile stress.
+pub trait Fracturable {
+    /// Separates elements whose largest principal stress at positions `x` exceeds `threshold`
+    /// (Pa); `None` if nothing broke.
+    fn fracture(&mut self, x: &[Real], rotations: &[Matrix3<Real>], threshold: Real) -> Result<Option<TopologyChange>, TopologyError>;
+}
+
+/// Backends that refine adaptively.
+pub trait Refinable {
+    /// Refines the elements whose error indicator exceeds `tolerance`.
+    fn refine(&mut self, x: &[Real], tolerance: Real) -> Result<Option<TopologyChange>, TopologyError>;
+}
+
+/// A spatial discretization of an elastic solid, seen through its warped stiffness blocks.
+///
+/// DOFs are 3-vectors ("nodes"); every slice argument is flat of length `3 * num_nodes()`.
+pub trait Discretization: Send + Sync {
+    /// Short backend name for reports ("voxel", "dg-ip-2", …).
+    fn name(&self) -> &str;
+
+    /// Number of 3-vector DOFs.
+    fn num_nodes(&self) -> usize;
+
+    /// `X0`: the DOF vector whose field is the identity map `x ↦ x`.
+    fn rest_dofs(&self) -> &[Real];
+
+    /// Bumped at every topology change.
+    fn epoch(&self) -> u64;
+
+    /// The mass matrix.
+    fn mass(&self) -> &Mass;
+
+    /// Number of rotation frames (usually one per element).
+    fn num_frames(&self) -> usize;
+
+    /// Writes one proper rotation per frame for positions `x`. `rotations` holds the previous
+    /// rotations on entry (a warm start; identity at the first call of an epoch).
+    fn write_rotations(&self, x: &[Real], rotations: &mut [Matrix3<Real>]) -> RotationStats;
+
+    /// The stiffness as warped blocks over a rest-matrix library.
+    fn blocks(&self) -> &BlockSet;
+
+    /// Whether an assembled stiffness pays off for this backend; `false` = matrix-free only.
+    fn wants_assembly(&self) -> bool {
+        true
+    }
+
+    /// `out += −Σ_b R K (Rᵀ x_b − X_b)`. Backends may override with a faster kernel; the
+    /// conformance suite checks it against the shared one.
+    fn add_internal_force(&self, rotations: &[Matrix3<Real>], x: &[Real], out: &mut [Real]) {
+        self.blocks().add_internal_force(rotations, x, self.rest_dofs(), out);
+    }
+
+    /// `out += s · Σ_b R K Rᵀ dx_b`. Backends may override with a faster kernel.
+    fn add_stiffness_action(&self, rotations: &[Matrix3<Real>], dx: &[Real], scale: Real, out: &mut [Real]) {
+        self.blocks().add_stiffness_action(rotations, dx, scale, out);
+    }
+
+    /// Elastic energy of the warped linear model at `x`.
+    fn elastic_energy(&self, rotations: &[Matrix3<Real>], x: &[Real]) -> Real {
+        self.blocks().elastic_energy(rotations, x, self.rest_dofs())
+    }
+
+    /// `out += ∫ f(X) N_k dV` for a force density `f` [N/m³] given at rest positions (gravity is
+    /// `ρ g`), integrated with a rule exact for the backend's shape functions times a quadratic.
+    fn add_load(&self, force_density: &dyn Fn(&Point3<Real>) -> Vector3<Real>, out: &mut [Real]);
+
+    /// Embeds rest-space points: one row of (node, weight) pairs per point.
+    fn embed(&self, points: &[Point3<Real>]) -> Result<Embedding, EmbedError>;
+
+    /// Visits the displacement field `u = x − X0` and its gradient at the quadrature points of a
+    /// rule of at least `min_degree` exactness per element (for error norms).
+    fn visit_field(&self, displacement: &[Real], min_degree: usize, visit: &mut dyn FnMut(&FieldSample));
+
+    /// Cutting, if supported.
+    fn as_cuttable(&mut self) -> Option<&mut dyn Cuttable> {
+        None
+    }
+
+    /// Fracture, if supported.
+    fn as_fracturable(&mut self) -> Option<&mut dyn Fracturable> {
+        None
+    }
+
+    /// Adaptive refinement, if supported.
+    fn as_refinable(&mut self) -> Option<&mut dyn Refinable> {
+        None
+    }
+}
