@@ -1,6 +1,5 @@
-//! Sparse patterns of 3×3-blocked symmetric matrices, built once per epoch, and the CSC matrix
-//! whose values the kernels write through precomputed positions (no search, no allocation per
-//! step).
+//! Sparse patterns of 3×3-blocked symmetric matrices, built once per epoch; kernels write values
+//! through precomputed positions (no search, no allocation per step).
 //!
 //! Layout: node `J` has the sorted neighbour list `N_J` (nodes sharing a block or a coupling group
 //! with it, itself included). Scalar column `3J + c` holds rows `3I + r` for `I ∈ N_J`, `r = 0..3`
@@ -100,6 +99,29 @@ impl AssemblyPattern {
         self.col_ptr[3 * j as usize + c] + 3 * rank as usize + r
     }
 
+    /// `out = A x` for the symmetric matrix with these `values`, stored in full: each output
+    /// entry gathers its column (`(A x)_j = Σ_i A_ji x_i`), so outputs are independent and run in
+    /// parallel.
+    pub fn mul_vec(&self, values: &[Real], x: &[Real], out: &mut [Real]) {
+        let (col_ptr, row_idx) = (&self.col_ptr, &self.row_idx);
+        out.par_iter_mut().enumerate().for_each(|(j, o)| {
+            let mut sum = 0.0;
+            for p in col_ptr[j]..col_ptr[j + 1] {
+                sum += values[p] * x[row_idx[p]];
+            }
+            *o = sum;
+        });
+    }
+
+    /// Value at scalar `(row, col)`, zero outside the pattern (a binary search: for tests).
+    pub fn get(&self, values: &[Real], row: usize, col: usize) -> Real {
+        let range = self.col_ptr[col]..self.col_ptr[col + 1];
+        match self.row_idx[range.clone()].binary_search(&row) {
+            Ok(k) => values[range.start + k],
+            Err(_) => 0.0,
+        }
+    }
+
     /// Adds the 3×3 block `m` (row-major `m[r][c]`) times `scale` at node pair `(i, j)` whose rank
     /// is known.
     #[inline]
@@ -109,43 +131,6 @@ impl AssemblyPattern {
             for r in 0..3 {
                 values[base + r] += scale * m[(r, c)];
             }
-        }
-    }
-}
-
-/// A CSC matrix on an [`AssemblyPattern`] (values only; the pattern is shared by reference).
-#[derive(Clone, Debug)]
-pub struct CscMatrix {
-    /// Values aligned with the pattern's `row_idx`.
-    pub values: Vec<Real>,
-}
-
-impl CscMatrix {
-    /// A zero matrix on `pattern`.
-    pub fn zeros(pattern: &AssemblyPattern) -> Self {
-        Self { values: vec![0.0; pattern.nnz()] }
-    }
-
-    /// `out = A x` for the symmetric matrix stored in full: each output entry gathers its column
-    /// (`(A x)_j = Σ_i A_ij x_i = Σ_i A_ji x_i`), so rows are independent and run in parallel.
-    pub fn mul_vec(&self, pattern: &AssemblyPattern, x: &[Real], out: &mut [Real]) {
-        let col_ptr = pattern.col_ptr();
-        let row_idx = pattern.row_idx();
-        out.par_iter_mut().enumerate().for_each(|(j, o)| {
-            let mut sum = 0.0;
-            for p in col_ptr[j]..col_ptr[j + 1] {
-                sum += self.values[p] * x[row_idx[p]];
-            }
-            *o = sum;
-        });
-    }
-
-    /// Value at scalar `(row, col)`, zero if outside the pattern (a binary search: for tests).
-    pub fn get(&self, pattern: &AssemblyPattern, row: usize, col: usize) -> Real {
-        let range = pattern.col_ptr()[col]..pattern.col_ptr()[col + 1];
-        match pattern.row_idx()[range.clone()].binary_search(&row) {
-            Ok(k) => self.values[range.start + k],
-            Err(_) => 0.0,
         }
     }
 }

@@ -15,7 +15,7 @@ pub mod quadrature;
 pub mod rotation;
 pub mod scatter;
 
-pub use assembly::{AssemblyPattern, CscMatrix};
+pub use assembly::AssemblyPattern;
 pub use blocks::{BlockRanks, BlockRef, BlockSet, BlockSetBuilder, BlockSetError, MAX_BLOCK_NODES};
 pub use discretization::{
     Cuttable, CutSurface, Discretization, DofRemap, FieldSample, Fracturable, Refinable,

@@ -1,0 +1,82 @@
+//! Preconditioned conjugate gradients on caller-supplied operator and preconditioner closures,
+//! with buffers owned by the caller so a step allocates nothing.
+
+use cleave_core::Real;
+use rayon::prelude::*;
+
+/// Reusable CG vectors.
+#[derive(Debug, Default)]
+pub(crate) struct CgWorkspace {
+    r: Vec<Real>,
+    z: Vec<Real>,
+    p: Vec<Real>,
+    ap: Vec<Real>,
+}
+
+/// How a CG solve ended.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct CgOutcome {
+    pub iterations: usize,
+    pub relative_residual: Real,
+    pub converged: bool,
+}
+
+fn dot(a: &[Real], b: &[Real]) -> Real {
+    a.par_iter().with_min_len(4096).zip(b).map(|(a, b)| a * b).sum()
+}
+
+impl CgWorkspace {
+    fn resize(&mut self, n: usize) {
+        for v in [&mut self.r, &mut self.z, &mut self.p, &mut self.ap] {
+            v.resize(n, 0.0);
+        }
+    }
+
+    /// Solves `A x = b` from the initial guess in `x`, until `‖r‖ ≤ tol ‖b‖`.
+    pub fn solve(
+        &mut self,
+        mut apply: impl FnMut(&[Real], &mut [Real]),
+        precondition: impl Fn(&[Real], &mut [Real]),
+        b: &[Real],
+        x: &mut [Real],
+        tolerance: Real,
+        max_iterations: usize,
+    ) -> CgOutcome {
+        self.resize(b.len());
+        let Self { r, z, p, ap } = self;
+        let b_norm = dot(b, b).sqrt();
+        if b_norm == 0.0 {
+            x.fill(0.0);
+            return CgOutcome { iterations: 0, relative_residual: 0.0, converged: true };
+        }
+        apply(x, ap);
+        r.par_iter_mut().zip(b).zip(&*ap).for_each(|((r, b), ap)| *r = b - ap);
+        precondition(r, z);
+        p.copy_from_slice(z);
+        let mut rz = dot(r, z);
+        let mut residual = dot(r, r).sqrt() / b_norm;
+        let mut iterations = 0;
+        while residual > tolerance && iterations < max_iterations {
+            apply(p, ap);
+            let pap = dot(p, ap);
+            if !(pap > 0.0) {
+                // Not positive definite along p (or NaN): stop and let the caller report it.
+                break;
+            }
+            let alpha = rz / pap;
+            x.par_iter_mut().zip(&*p).for_each(|(x, p)| *x += alpha * p);
+            r.par_iter_mut().zip(&*ap).for_each(|(r, ap)| *r -= alpha * ap);
+            residual = dot(r, r).sqrt() / b_norm;
+            iterations += 1;
+            if residual <= tolerance {
+                break;
+            }
+            precondition(r, z);
+            let rz_new = dot(r, z);
+            let beta = rz_new / rz;
+            rz = rz_new;
+            p.par_iter_mut().zip(&*z).for_each(|(p, z)| *p = z + beta * *p);
+        }
+        CgOutcome { iterations, relative_residual: residual, converged: residual <= tolerance }
+    }
+}

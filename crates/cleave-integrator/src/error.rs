@@ -1,0 +1,51 @@
+//! Step failures: every way a step can go wrong, named with the step it happened in.
+
+use cleave_core::Real;
+
+/// A failed step: what happened and in which step (0-based).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("step {step}: {kind}")]
+pub struct StepError {
+    /// Index of the step that failed.
+    pub step: u64,
+    /// What went wrong.
+    pub kind: StepErrorKind,
+}
+
+/// What went wrong in a step.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum StepErrorKind {
+    /// NaN or infinity in the new state.
+    #[error("the state became non-finite (NaN or infinity) at DOF {dof}")]
+    NotFinite {
+        /// first offending scalar DOF
+        dof: usize,
+    },
+    /// Positions ran away.
+    #[error("the solution diverged: a node moved {distance:.3e} m from the rest shape (limit {limit:.3e} m)")]
+    Diverged {
+        /// the largest displacement found
+        distance: Real,
+        /// the limit it crossed
+        limit: Real,
+    },
+    /// CG hit its iteration limit.
+    #[error("CG did not converge: relative residual {residual:.3e} after {iterations} iterations (tolerance {tolerance:.1e})")]
+    CgNotConverged {
+        /// iterations taken
+        iterations: usize,
+        /// final relative residual
+        residual: Real,
+        /// requested tolerance
+        tolerance: Real,
+    },
+    /// Cholesky met a non-positive pivot.
+    #[error("the system matrix is not positive definite (Cholesky pivot {pivot} in the permuted order)")]
+    NotPositiveDefinite {
+        /// 1-based pivot in faer's permuted order
+        pivot: usize,
+    },
+    /// Something else from the sparse solver.
+    #[error("sparse solver failure: {0}")]
+    Solver(String),
+}

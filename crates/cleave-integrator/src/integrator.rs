@@ -1,0 +1,597 @@
+//! The corotated linearly implicit backward Euler step (docs/math/corotated-integrator.md):
+//!
+//! ```text
+//! (M + h D + h² K_R + h² K_c + h C_c) v⁺ = M v + h (f_int(x) + f_ext + f_c(x)),   x⁺ = x + h v⁺
+//! D = αM + βK_R
+//! ```
+//!
+//! with rotations frozen at `x`, pinned DOFs eliminated and penalty terms (pins, plane contacts)
+//! linearized implicitly.
+
+use crate::cg::CgWorkspace;
+use crate::constraints::Constraints;
+use crate::error::{StepError, StepErrorKind};
+use crate::system::AssembledSystem;
+use cleave_core::{Discretization, DofRemap, Matrix3, Point3, Real, TopologyChange, Vector3};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Linear solver of a step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Solver {
+    /// faer sparse Cholesky (LLT): symbolic factorization once per epoch, numeric every step.
+    Cholesky,
+    /// Block-Jacobi (3×3) preconditioned CG warm-started from the previous velocity.
+    ConjugateGradient {
+        /// Relative residual `‖r‖/‖b‖` to reach.
+        tolerance: Real,
+        /// Iteration limit; reaching it is a step error.
+        max_iterations: usize,
+        /// Multiply with an assembled matrix (`true`) or with the backend's matrix-free kernel.
+        assembled: bool,
+    },
+}
+
+/// Fixed parameters of a run.
+#[derive(Clone, Debug)]
+pub struct Settings {
+    /// Time step `h` [s].
+    pub time_step: Real,
+    /// Gravity [m/s²].
+    pub gravity: Vector3<Real>,
+    /// Mass-proportional Rayleigh damping `α` [1/s].
+    pub rayleigh_alpha: Real,
+    /// Stiffness-proportional Rayleigh damping `β` [s].
+    pub rayleigh_beta: Real,
+    /// The linear solver.
+    pub solver: Solver,
+    /// A step fails as diverged when a node moves farther than this many rest-shape diagonals.
+    pub divergence_factor: Real,
+}
+
+impl Settings {
+    /// Defaults: matrix-free CG at 1e-6, no damping, Earth gravity along −z, h = 1/60 s.
+    pub fn new(time_step: Real) -> Self {
+        Self {
+            time_step,
+            gravity: Vector3::new(0.0, 0.0, -9.81),
+            rayleigh_alpha: 0.0,
+            rayleigh_beta: 0.0,
+            solver: Solver::ConjugateGradient { tolerance: 1e-6, max_iterations: 2000, assembled: false },
+            divergence_factor: 1e3,
+        }
+    }
+}
+
+/// Wall-clock seconds per phase of one step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PhaseSeconds {
+    /// Rotation extraction.
+    pub rotations: Real,
+    /// Forces, right-hand side and (assembled paths) matrix assembly.
+    pub assembly: Real,
+    /// Factorization and solve, or CG.
+    pub solve: Real,
+    /// Everything else (update, energies, checks).
+    pub rest: Real,
+}
+
+impl PhaseSeconds {
+    /// Sum of all phases.
+    pub fn total(&self) -> Real {
+        self.rotations + self.assembly + self.solve + self.rest
+    }
+}
+
+/// What one step did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct StepReport {
+    /// Index of the step (0-based).
+    pub step: u64,
+    /// Simulated time after the step [s].
+    pub time: Real,
+    /// CG iterations (1 for a direct solve).
+    pub iterations: usize,
+    /// Final relative residual `‖b − A v‖/‖b‖`.
+    pub residual: Real,
+    /// Phase timings.
+    pub seconds: PhaseSeconds,
+    /// Kinetic energy `½ vᵀMv` [J].
+    pub kinetic_energy: Real,
+    /// Warped elastic energy [J].
+    pub elastic_energy: Real,
+    /// Gravitational potential `−f_extᵀ x` [J].
+    pub gravitational_energy: Real,
+    /// Penalty energy of contacts and pins [J].
+    pub penalty_energy: Real,
+    /// Elements with `det F ≤ 0`.
+    pub inverted_elements: usize,
+    /// Contact points in contact.
+    pub active_contacts: usize,
+}
+
+impl StepReport {
+    /// Kinetic + elastic + gravitational + penalty energy [J].
+    pub fn total_energy(&self) -> Real {
+        self.kinetic_energy + self.elastic_energy + self.gravitational_energy + self.penalty_energy
+    }
+}
+
+/// Per-step scratch, sized once per epoch.
+#[derive(Debug, Default)]
+struct Workspace {
+    rhs: Vec<Real>,
+    force: Vec<Real>,
+    scratch: Vec<Real>,
+    preconditioner: Vec<Matrix3<Real>>,
+    contact_depth: Vec<Real>,
+    cg: CgWorkspace,
+}
+
+/// Owns the state `{x, v, epoch}` and advances it.
+pub struct Integrator {
+    settings: Settings,
+    constraints: Constraints,
+    x: Vec<Real>,
+    v: Vec<Real>,
+    rotations: Vec<Matrix3<Real>>,
+    external_force: Vec<Real>,
+    pinned: Vec<bool>,
+    epoch: u64,
+    step: u64,
+    time: Real,
+    divergence_limit: Real,
+    system: Option<AssembledSystem>,
+    work: Workspace,
+    last_inverted: usize,
+}
+
+impl Integrator {
+    /// Starts at rest in the rest shape of `discretization`.
+    pub fn new(discretization: &dyn Discretization, settings: Settings, constraints: Constraints) -> Result<Self, StepError> {
+        let x = discretization.rest_dofs().to_vec();
+        let v = vec![0.0; x.len()];
+        let mut integrator = Self {
+            settings,
+            constraints,
+            x,
+            v,
+            rotations: Vec::new(),
+            external_force: Vec::new(),
+            pinned: Vec::new(),
+            epoch: discretization.epoch(),
+            step: 0,
+            time: 0.0,
+            divergence_limit: 0.0,
+            system: None,
+            work: Workspace::default(),
+            last_inverted: 0,
+        };
+        integrator.rebuild(discretization).map_err(|kind| StepError { step: 0, kind })?;
+        Ok(integrator)
+    }
+
+    /// Rebuilds everything that depends on the topology: loads, pins, pattern, factorization.
+    fn rebuild(&mut self, discretization: &dyn Discretization) -> Result<(), StepErrorKind> {
+        let n = self.x.len();
+        self.rotations = vec![Matrix3::identity(); discretization.num_frames()];
+        self.last_inverted = discretization.write_rotations(&self.x, &mut self.rotations).inverted;
+        self.external_force = vec![0.0; n];
+        let g = self.settings.gravity;
+        let density = discretization.mass().total();
+        if g != Vector3::zeros() && density > 0.0 {
+            // Lumped masses give the consistent gravity load exactly: f = M g per node.
+            self.external_force
+                .chunks_exact_mut(3)
+                .zip(discretization.mass().diagonal().chunks_exact(3))
+                .for_each(|(f, m)| {
+                    for a in 0..3 {
+                        f[a] = m[a] * g[a];
+                    }
+                });
+        }
+        self.pinned = vec![false; n];
+        for &d in &self.constraints.pinned_dofs {
+            if d >= n {
+                return Err(StepErrorKind::Solver(format!("pinned DOF {d} out of range (0..{n})")));
+            }
+            self.pinned[d] = true;
+        }
+        let rest = discretization.rest_dofs();
+        let (mut lo, mut hi) = (Point3::from([Real::MAX; 3]), Point3::from([Real::MIN; 3]));
+        for p in rest.chunks_exact(3) {
+            for a in 0..3 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        }
+        self.divergence_limit = self.settings.divergence_factor * (hi - lo).norm().max(1e-3);
+        let needs_assembly = match self.settings.solver {
+            Solver::Cholesky => true,
+            Solver::ConjugateGradient { assembled, .. } => assembled && discretization.wants_assembly(),
+        };
+        self.system = if needs_assembly {
+            Some(AssembledSystem::new(discretization, &self.constraints, self.settings.solver == Solver::Cholesky)?)
+        } else {
+            None
+        };
+        self.work.rhs = vec![0.0; n];
+        self.work.force = vec![0.0; n];
+        self.work.scratch = vec![0.0; n];
+        self.work.preconditioner = vec![Matrix3::zeros(); discretization.num_nodes()];
+        let contacts = self.constraints.contact_points.as_ref().map_or(0, |c| c.len());
+        self.work.contact_depth = vec![0.0; contacts * self.constraints.planes.len()];
+        self.epoch = discretization.epoch();
+        Ok(())
+    }
+
+    /// Carries the state across a topology change and rebuilds the per-epoch structures. The
+    /// caller passes constraints re-embedded on the new topology.
+    pub fn apply_topology_change(&mut self, discretization: &dyn Discretization, change: &TopologyChange, constraints: Constraints) -> Result<(), StepError> {
+        if change.remap != DofRemap::Identity {
+            self.x = change.remap.apply(&self.x);
+            self.v = change.remap.apply(&self.v);
+        }
+        self.constraints = constraints;
+        self.rebuild(discretization).map_err(|kind| StepError { step: self.step, kind })
+    }
+
+    /// Current positions (DOF vector).
+    pub fn positions(&self) -> &[Real] {
+        &self.x
+    }
+
+    /// Current velocities.
+    pub fn velocities(&self) -> &[Real] {
+        &self.v
+    }
+
+    /// Sets positions and velocities (e.g. an initial stretch), refreshing the rotations.
+    pub fn set_state(&mut self, discretization: &dyn Discretization, x: Vec<Real>, v: Vec<Real>) {
+        assert_eq!(x.len(), self.x.len(), "state has the wrong length");
+        assert_eq!(v.len(), self.v.len(), "state has the wrong length");
+        self.x = x;
+        self.v = v;
+        self.last_inverted = discretization.write_rotations(&self.x, &mut self.rotations).inverted;
+    }
+
+    /// Current rotations (one per frame, valid for the current positions).
+    pub fn rotations(&self) -> &[Matrix3<Real>] {
+        &self.rotations
+    }
+
+    /// Simulated time [s].
+    pub fn time(&self) -> Real {
+        self.time
+    }
+
+    /// Number of steps taken.
+    pub fn steps_taken(&self) -> u64 {
+        self.step
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// Nonzeros of the assembled matrix and of its Cholesky factor, if assembled.
+    pub fn matrix_stats(&self) -> Option<(usize, Option<usize>)> {
+        self.system.as_ref().map(|s| (s.pattern.nnz(), s.factor_nnz()))
+    }
+
+    /// Energies of the current state (rotations must be current, which they are between steps).
+    pub fn energies(&mut self, discretization: &dyn Discretization) -> StepReport {
+        let mut report = StepReport {
+            step: self.step,
+            time: self.time,
+            kinetic_energy: discretization.mass().kinetic_energy(&self.v),
+            elastic_energy: discretization.elastic_energy(&self.rotations, &self.x),
+            gravitational_energy: -self.external_force.par_iter().zip(&self.x).map(|(f, x)| f * x).sum::<Real>(),
+            inverted_elements: self.last_inverted,
+            ..Default::default()
+        };
+        let (energy, active) = self.penalty_energy();
+        report.penalty_energy = energy;
+        report.active_contacts = active;
+        report
+    }
+
+    fn penalty_energy(&self) -> (Real, usize) {
+        let mut energy = 0.0;
+        let mut active = 0;
+        if let Some(points) = &self.constraints.contact_points {
+            for plane in &self.constraints.planes {
+                for i in 0..points.len() {
+                    let depth = plane.normal.dot(&(points.point(&self.x, i) - plane.point));
+                    if depth < 0.0 {
+                        energy += 0.5 * plane.stiffness * depth * depth;
+                        active += 1;
+                    }
+                }
+            }
+        }
+        if let Some(pins) = &self.constraints.penalty_pins {
+            for (i, target) in pins.targets.iter().enumerate() {
+                energy += 0.5 * pins.stiffness * (pins.points.point(&self.x, i) - target).norm_squared();
+            }
+        }
+        (energy, active)
+    }
+
+    /// Advances one step of size `h`.
+    pub fn step(&mut self, discretization: &dyn Discretization) -> Result<StepReport, StepError> {
+        let step = self.step;
+        self.step_inner(discretization).map_err(|kind| StepError { step, kind })
+    }
+
+    fn step_inner(&mut self, discretization: &dyn Discretization) -> Result<StepReport, StepErrorKind> {
+        if discretization.epoch() != self.epoch {
+            return Err(StepErrorKind::Solver(format!(
+                "the discretization is at epoch {} but the integrator at {}: call apply_topology_change",
+                discretization.epoch(),
+                self.epoch
+            )));
+        }
+        let h = self.settings.time_step;
+        let (alpha, beta) = (self.settings.rayleigh_alpha, self.settings.rayleigh_beta);
+        let mass_scale = 1.0 + h * alpha;
+        let stiffness_scale = h * beta + h * h;
+        let mut seconds = PhaseSeconds::default();
+
+        // Right-hand side: M v + h (f_int(x) + f_ext + f_c(x)).
+        let clock = Instant::now();
+        let mass = discretization.mass();
+        let Workspace { rhs, force, .. } = &mut self.work;
+        force.copy_from_slice(&self.external_force);
+        discretization.add_internal_force(&self.rotations, &self.x, force);
+        mass.apply(&self.v, rhs);
+        self.add_penalty_forces();
+        let Workspace { rhs, force, .. } = &mut self.work;
+        rhs.par_iter_mut().zip(&*force).for_each(|(r, f)| *r += h * f);
+        for (r, &p) in rhs.iter_mut().zip(&self.pinned) {
+            if p {
+                *r = 0.0;
+            }
+        }
+        if let Some(system) = &mut self.system {
+            system.fill(discretization, &self.rotations, mass_scale, stiffness_scale);
+            Self::add_penalty_matrix(&self.constraints, &self.work.contact_depth, h, system);
+            system.apply_pins();
+        }
+        seconds.assembly = clock.elapsed().as_secs_f64();
+
+        // Solve for v⁺.
+        let clock = Instant::now();
+        let (iterations, residual) = match self.settings.solver {
+            Solver::Cholesky => {
+                let system = self.system.as_mut().expect("Cholesky builds the system");
+                system.factorize()?;
+                self.v.copy_from_slice(&self.work.rhs);
+                system.solve_in_place(&mut self.v);
+                (1, 0.0)
+            }
+            Solver::ConjugateGradient { tolerance, max_iterations, .. } => {
+                self.build_preconditioner(discretization, mass_scale, stiffness_scale, h);
+                for (v, &p) in self.v.iter_mut().zip(&self.pinned) {
+                    if p {
+                        *v = 0.0;
+                    }
+                }
+                let pinned = &self.pinned;
+                let rotations = &self.rotations;
+                let constraints = &self.constraints;
+                let depth = &self.work.contact_depth;
+                let system = &self.system;
+                let preconditioner = &self.work.preconditioner;
+                let outcome = self.work.cg.solve(
+                    |p, out| {
+                        match system {
+                            Some(s) => s.pattern.mul_vec(&s.values, p, out),
+                            None => {
+                                mass.apply(p, out);
+                                if mass_scale != 1.0 {
+                                    out.iter_mut().for_each(|o| *o *= mass_scale);
+                                }
+                                discretization.add_stiffness_action(rotations, p, stiffness_scale, out);
+                                add_penalty_action(constraints, depth, h, p, out);
+                                for (o, &pin) in out.iter_mut().zip(pinned) {
+                                    if pin {
+                                        *o = 0.0;
+                                    }
+                                }
+                            }
+                        }
+                    },
+                    |r, z| {
+                        z.par_chunks_mut(3).zip(r.par_chunks(3)).zip(preconditioner).for_each(|((z, r), m)| {
+                            let y = m * Vector3::new(r[0], r[1], r[2]);
+                            z.copy_from_slice(y.as_slice());
+                        });
+                    },
+                    &self.work.rhs,
+                    &mut self.v,
+                    tolerance,
+                    max_iterations,
+                );
+                if !outcome.converged {
+                    return Err(StepErrorKind::CgNotConverged {
+                        iterations: outcome.iterations,
+                        residual: outcome.relative_residual,
+                        tolerance,
+                    });
+                }
+                (outcome.iterations, outcome.relative_residual)
+            }
+        };
+        seconds.solve = clock.elapsed().as_secs_f64();
+
+        // Update and check.
+        let clock = Instant::now();
+        if let Some(dof) = self.v.iter().position(|v| !v.is_finite()) {
+            return Err(StepErrorKind::NotFinite { dof });
+        }
+        self.x.par_iter_mut().zip(&self.v).for_each(|(x, v)| *x += h * v);
+        let rest = discretization.rest_dofs();
+        let distance = self
+            .x
+            .par_chunks(3)
+            .zip(rest.par_chunks(3))
+            .map(|(x, r)| ((x[0] - r[0]).powi(2) + (x[1] - r[1]).powi(2) + (x[2] - r[2]).powi(2)).sqrt())
+            .reduce(|| 0.0, Real::max);
+        if distance > self.divergence_limit {
+            return Err(StepErrorKind::Diverged { distance, limit: self.divergence_limit });
+        }
+        self.step += 1;
+        self.time += h;
+        let rest_seconds = clock.elapsed().as_secs_f64();
+
+        let clock = Instant::now();
+        self.last_inverted = discretization.write_rotations(&self.x, &mut self.rotations).inverted;
+        seconds.rotations = clock.elapsed().as_secs_f64();
+
+        let clock = Instant::now();
+        let mut report = self.energies(discretization);
+        report.step = self.step - 1;
+        report.iterations = iterations;
+        report.residual = residual;
+        seconds.rest = rest_seconds + clock.elapsed().as_secs_f64();
+        report.seconds = seconds;
+        if !report.total_energy().is_finite() {
+            return Err(StepErrorKind::NotFinite { dof: 0 });
+        }
+        Ok(report)
+    }
+
+    /// Adds penalty forces at `x` to `work.force` and records contact depths.
+    fn add_penalty_forces(&mut self) {
+        let force = &mut self.work.force;
+        if let Some(points) = &self.constraints.contact_points {
+            for (p_index, plane) in self.constraints.planes.iter().enumerate() {
+                for i in 0..points.len() {
+                    let depth = plane.normal.dot(&(points.point(&self.x, i) - plane.point));
+                    self.work.contact_depth[p_index * points.len() + i] = depth;
+                    if depth < 0.0 {
+                        let f = plane.normal * (-plane.stiffness * depth);
+                        let (nodes, weights) = points.row(i);
+                        for (&n, &w) in nodes.iter().zip(weights) {
+                            for a in 0..3 {
+                                force[3 * n as usize + a] += w * f[a];
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        if let Some(pins) = &self.constraints.penalty_pins {
+            for (i, target) in pins.targets.iter().enumerate() {
+                let f = (target - pins.points.point(&self.x, i)) * pins.stiffness;
+                let (nodes, weights) = pins.points.row(i);
+                for (&n, &w) in nodes.iter().zip(weights) {
+                    for a in 0..3 {
+                        force[3 * n as usize + a] += w * f[a];
+                    }
+                }
+            }
+        }
+    }
+
+    /// Adds `h² K_c + h C_c` of active contacts and `h² k I` of penalty pins to the matrix.
+    fn add_penalty_matrix(constraints: &Constraints, depth: &[Real], h: Real, system: &mut AssembledSystem) {
+        if let Some(points) = &constraints.contact_points {
+            for (p_index, plane) in constraints.planes.iter().enumerate() {
+                let nn = plane.normal * plane.normal.transpose() * (h * h * plane.stiffness + h * plane.damping);
+                for i in 0..points.len() {
+                    if depth[p_index * points.len() + i] < 0.0 {
+                        system.contact_ranks.add_row(points, i, &nn, &system.pattern, &mut system.values);
+                    }
+                }
+            }
+        }
+        if let Some(pins) = &constraints.penalty_pins {
+            let k = Matrix3::identity() * (h * h * pins.stiffness);
+            for i in 0..pins.points.len() {
+                system.pin_ranks.add_row(&pins.points, i, &k, &system.pattern, &mut system.values);
+            }
+        }
+    }
+
+    /// 3×3 block-Jacobi preconditioner: inverse diagonal blocks of the system matrix.
+    fn build_preconditioner(&mut self, discretization: &dyn Discretization, mass_scale: Real, stiffness_scale: Real, h: Real) {
+        let blocks = &mut self.work.preconditioner;
+        blocks.iter_mut().for_each(|b| *b = Matrix3::zeros());
+        discretization.blocks().add_diagonal_blocks(&self.rotations, stiffness_scale, blocks);
+        let mass = discretization.mass().diagonal();
+        if let Some(points) = &self.constraints.contact_points {
+            for (p_index, plane) in self.constraints.planes.iter().enumerate() {
+                let nn = plane.normal * plane.normal.transpose() * (h * h * plane.stiffness + h * plane.damping);
+                for i in 0..points.len() {
+                    if self.work.contact_depth[p_index * points.len() + i] < 0.0 {
+                        let (nodes, weights) = points.row(i);
+                        for (&n, &w) in nodes.iter().zip(weights) {
+                            blocks[n as usize] += nn * (w * w);
+                        }
+                    }
+                }
+            }
+        }
+        if let Some(pins) = &self.constraints.penalty_pins {
+            for i in 0..pins.points.len() {
+                let (nodes, weights) = pins.points.row(i);
+                for (&n, &w) in nodes.iter().zip(weights) {
+                    blocks[n as usize] += Matrix3::identity() * (h * h * pins.stiffness * w * w);
+                }
+            }
+        }
+        let pinned = &self.pinned;
+        blocks.par_iter_mut().enumerate().for_each(|(node, b)| {
+            for a in 0..3 {
+                b[(a, a)] += mass_scale * mass[3 * node + a];
+            }
+            for a in 0..3 {
+                if pinned[3 * node + a] {
+                    for c in 0..3 {
+                        b[(a, c)] = 0.0;
+                        b[(c, a)] = 0.0;
+                    }
+                    b[(a, a)] = 1.0;
+                }
+            }
+            *b = b.try_inverse().unwrap_or_else(|| {
+                Matrix3::from_diagonal(&b.diagonal().map(|d| if d != 0.0 { 1.0 / d } else { 1.0 }))
+            });
+        });
+    }
+}
+
+/// `out += (h² K_c + h C_c) p` for active contacts and `h² k p` for penalty pins (matrix-free).
+fn add_penalty_action(constraints: &Constraints, depth: &[Real], h: Real, p: &[Real], out: &mut [Real]) {
+    if let Some(points) = &constraints.contact_points {
+        for (p_index, plane) in constraints.planes.iter().enumerate() {
+            let coefficient = h * h * plane.stiffness + h * plane.damping;
+            for i in 0..points.len() {
+                if depth[p_index * points.len() + i] < 0.0 {
+                    let value = plane.normal.dot(&points.point(p, i).coords) * coefficient;
+                    let (nodes, weights) = points.row(i);
+                    for (&n, &w) in nodes.iter().zip(weights) {
+                        for a in 0..3 {
+                            out[3 * n as usize + a] += w * value * plane.normal[a];
+                        }
+                    }
+                }
+            }
+        }
+    }
+    if let Some(pins) = &constraints.penalty_pins {
+        let coefficient = h * h * pins.stiffness;
+        for i in 0..pins.points.len() {
+            let q = pins.points.point(p, i).coords * coefficient;
+            let (nodes, weights) = pins.points.row(i);
+            for (&n, &w) in nodes.iter().zip(weights) {
+                for a in 0..3 {
+                    out[3 * n as usize + a] += w * q[a];
+                }
+            }
+        }
+    }
+}

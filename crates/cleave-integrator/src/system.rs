@@ -1,0 +1,199 @@
+//! The assembled system path: the sparsity pattern, block and penalty-row ranks, pinned-entry
+//! positions and the Cholesky symbolic factorization, all built once per epoch; per step only
+//! values are written and refactorized.
+
+use crate::constraints::Constraints;
+use crate::error::StepErrorKind;
+use cleave_core::{AssemblyPattern, BlockRanks, Discretization, Embedding, Matrix3, Real};
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky};
+use faer::linalg::cholesky::llt::factor::LltError;
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
+use faer::{Conj, MatMut, Par, Side};
+
+/// Ranks of every (row, column) node pair of a list of embedding rows in the pattern.
+#[derive(Debug, Default)]
+pub(crate) struct RowRanks {
+    offsets: Vec<usize>,
+    ranks: Vec<u32>,
+}
+
+impl RowRanks {
+    pub(crate) fn new(rows: &Embedding, pattern: &AssemblyPattern) -> Self {
+        let mut offsets = vec![0];
+        let mut ranks = Vec::new();
+        for i in 0..rows.len() {
+            let nodes = rows.row(i).0;
+            for &j in nodes {
+                for &k in nodes {
+                    ranks.push(pattern.rank(k, j).expect("pattern holds every coupling row"));
+                }
+            }
+            offsets.push(ranks.len());
+        }
+        Self { offsets, ranks }
+    }
+
+    /// Adds `w wᵀ ⊗ P` for row `i` of `rows`.
+    pub(crate) fn add_row(&self, rows: &Embedding, i: usize, p: &Matrix3<Real>, pattern: &AssemblyPattern, values: &mut [Real]) {
+        let (nodes, weights) = rows.row(i);
+        let ranks = &self.ranks[self.offsets[i]..self.offsets[i + 1]];
+        let n = nodes.len();
+        for (b, (&j, &wj)) in nodes.iter().zip(weights).enumerate() {
+            for (a, &wi) in weights.iter().enumerate() {
+                pattern.add_block(values, ranks[b * n + a], j, p, wi * wj);
+            }
+        }
+    }
+}
+
+/// Everything the assembled path keeps for one epoch.
+pub(crate) struct AssembledSystem {
+    pub pattern: AssemblyPattern,
+    pub block_ranks: BlockRanks,
+    pub pin_ranks: RowRanks,
+    pub contact_ranks: RowRanks,
+    pub values: Vec<Real>,
+    /// Positions of entries in a pinned row or column (zeroed) and of pinned diagonals (set to 1).
+    pinned_off_diagonal: Vec<usize>,
+    pinned_diagonal: Vec<usize>,
+    symbolic_matrix: SymbolicSparseColMat<usize>,
+    cholesky: Option<CholeskyStorage>,
+}
+
+struct CholeskyStorage {
+    symbolic: SymbolicCholesky<usize>,
+    factor_values: Vec<Real>,
+    scratch: MemBuffer,
+    factored: bool,
+}
+
+impl AssembledSystem {
+    pub(crate) fn new(discretization: &dyn Discretization, constraints: &Constraints, with_cholesky: bool) -> Result<Self, StepErrorKind> {
+        let blocks = discretization.blocks();
+        let pattern = AssemblyPattern::from_groups(
+            discretization.num_nodes(),
+            blocks.node_groups().chain(constraints.coupling_groups()),
+        );
+        let block_ranks = BlockRanks::new(blocks, &pattern);
+        let pin_ranks = constraints
+            .penalty_pins
+            .as_ref()
+            .map_or_else(RowRanks::default, |p| RowRanks::new(&p.points, &pattern));
+        let contact_ranks = match &constraints.contact_points {
+            Some(points) if !constraints.planes.is_empty() => RowRanks::new(points, &pattern),
+            _ => RowRanks::default(),
+        };
+        let dim = pattern.dim();
+        let mut pinned = vec![false; dim];
+        for &d in &constraints.pinned_dofs {
+            pinned[d] = true;
+        }
+        let (mut pinned_off_diagonal, mut pinned_diagonal) = (Vec::new(), Vec::new());
+        for col in 0..dim {
+            for p in pattern.col_ptr()[col]..pattern.col_ptr()[col + 1] {
+                let row = pattern.row_idx()[p];
+                if pinned[row] || pinned[col] {
+                    if row == col {
+                        pinned_diagonal.push(p);
+                    } else {
+                        pinned_off_diagonal.push(p);
+                    }
+                }
+            }
+        }
+        let symbolic_matrix = SymbolicSparseColMat::new_checked(
+            dim,
+            dim,
+            pattern.col_ptr().to_vec(),
+            None,
+            pattern.row_idx().to_vec(),
+        );
+        let cholesky = if with_cholesky {
+            let symbolic = factorize_symbolic_cholesky(symbolic_matrix.as_ref(), Side::Lower, Default::default(), Default::default())
+                .map_err(|e| StepErrorKind::Solver(format!("symbolic Cholesky: {e:?}")))?;
+            let par = Par::rayon(0);
+            let scratch = MemBuffer::try_new(StackReq::any_of(&[
+                symbolic.factorize_numeric_llt_scratch::<Real>(par, Default::default()),
+                symbolic.solve_in_place_scratch::<Real>(1, par),
+            ]))
+            .map_err(|_| StepErrorKind::Solver("out of memory for the Cholesky workspace".into()))?;
+            let factor_values = vec![0.0; symbolic.len_val()];
+            Some(CholeskyStorage { symbolic, factor_values, scratch, factored: false })
+        } else {
+            None
+        };
+        let values = vec![0.0; pattern.nnz()];
+        Ok(Self {
+            pattern,
+            block_ranks,
+            pin_ranks,
+            contact_ranks,
+            values,
+            pinned_off_diagonal,
+            pinned_diagonal,
+            symbolic_matrix,
+            cholesky,
+        })
+    }
+
+    /// Number of nonzeros of the factor, if factorized.
+    pub(crate) fn factor_nnz(&self) -> Option<usize> {
+        self.cholesky.as_ref().map(|c| c.symbolic.len_val())
+    }
+
+    /// `values = c_m M + c_k K_R` (penalty rows are added by the caller afterwards).
+    pub(crate) fn fill(&mut self, discretization: &dyn Discretization, rotations: &[Matrix3<Real>], mass_scale: Real, stiffness_scale: Real) {
+        self.values.fill(0.0);
+        discretization.blocks().add_to_matrix(rotations, stiffness_scale, &self.pattern, &self.block_ranks, &mut self.values);
+        let mass = discretization.mass().diagonal();
+        for node in 0..self.pattern.num_nodes() as u32 {
+            let rank = self.pattern.rank(node, node).expect("diagonal is in the pattern");
+            for c in 0..3 {
+                let d = 3 * node as usize + c;
+                self.values[self.pattern.position(rank, node, c, c)] += mass_scale * mass[d];
+            }
+        }
+    }
+
+    /// Replaces pinned rows and columns by those of the identity.
+    pub(crate) fn apply_pins(&mut self) {
+        for &p in &self.pinned_off_diagonal {
+            self.values[p] = 0.0;
+        }
+        for &p in &self.pinned_diagonal {
+            self.values[p] = 1.0;
+        }
+    }
+
+    /// Numeric factorization on the cached symbolic one.
+    pub(crate) fn factorize(&mut self) -> Result<(), StepErrorKind> {
+        let storage = self.cholesky.as_mut().expect("factorize needs the Cholesky storage");
+        let matrix = SparseColMatRef::new(self.symbolic_matrix.as_ref(), &self.values);
+        let result = storage.symbolic.factorize_numeric_llt::<Real>(
+            &mut storage.factor_values,
+            matrix,
+            Side::Lower,
+            LltRegularization::default(),
+            Par::rayon(0),
+            MemStack::new(&mut storage.scratch),
+            Default::default(),
+        );
+        storage.factored = result.is_ok();
+        match result {
+            Ok(_) => Ok(()),
+            Err(LltError::NonPositivePivot { index }) => Err(StepErrorKind::NotPositiveDefinite { pivot: index }),
+        }
+    }
+
+    /// Solves in place with the last factorization.
+    pub(crate) fn solve_in_place(&mut self, rhs: &mut [Real]) {
+        let storage = self.cholesky.as_mut().expect("solve needs the Cholesky storage");
+        assert!(storage.factored, "solve_in_place before a successful factorize");
+        let llt = LltRef::<'_, usize, Real>::new(&storage.symbolic, &storage.factor_values);
+        let n = rhs.len();
+        let rhs = MatMut::from_column_major_slice_mut(rhs, n, 1);
+        llt.solve_in_place_with_conj(Conj::No, rhs, Par::rayon(0), MemStack::new(&mut storage.scratch));
+    }
+}

@@ -1,0 +1,215 @@
+//! The shared benchmark problems of `shared/notes/benchmarks.md` (copied into
+//! `docs/math/benchmarks.md`): the manufactured solutions `sin111` and `cos123` on the unit cube,
+//! and the static cantilever. Backend-neutral: everything goes through the trait.
+
+use cleave_core::{Discretization, Material, Matrix3, Point3, Real, Vector3};
+use std::f64::consts::PI;
+
+/// Amplitude `A` of the manufactured displacement.
+pub const MMS_AMPLITUDE: Real = 0.01;
+
+/// The two manufactured solutions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Manufactured {
+    /// `g = s1 s2 s3`, `a = (1,1,1)`, zero on the boundary.
+    Sin111,
+    /// `g = c1 c2 c3`, `a = (1,2,3)`, inhomogeneous Dirichlet data.
+    Cos123,
+}
+
+impl Manufactured {
+    fn direction(self) -> Vector3<Real> {
+        match self {
+            Manufactured::Sin111 => Vector3::new(1.0, 1.0, 1.0),
+            Manufactured::Cos123 => Vector3::new(1.0, 2.0, 3.0),
+        }
+    }
+
+    /// `g`, `∇g` and `Hess g` at `p`.
+    fn scalar(self, p: &Point3<Real>) -> (Real, Vector3<Real>, Matrix3<Real>) {
+        let s = p.coords.map(|x| (PI * x).sin());
+        let c = p.coords.map(|x| (PI * x).cos());
+        // Write g = f0(x) f1(y) f2(z) with f = sin or cos; f' and f'' per axis.
+        let (f, df, ddf) = match self {
+            Manufactured::Sin111 => (s, c * PI, -s * PI * PI),
+            Manufactured::Cos123 => (c, -s * PI, -c * PI * PI),
+        };
+        let g = f[0] * f[1] * f[2];
+        let grad = Vector3::new(df[0] * f[1] * f[2], f[0] * df[1] * f[2], f[0] * f[1] * df[2]);
+        let mut hess = Matrix3::zeros();
+        for i in 0..3 {
+            for j in 0..3 {
+                hess[(i, j)] = (0..3)
+                    .map(|k| {
+                        let order = usize::from(k == i) + usize::from(k == j);
+                        match order {
+                            0 => f[k],
+                            1 => df[k],
+                            _ => ddf[k],
+                        }
+                    })
+                    .product();
+            }
+        }
+        (g, grad, hess)
+    }
+
+    /// Exact displacement `u = A g a`.
+    pub fn displacement(self, p: &Point3<Real>) -> Vector3<Real> {
+        self.direction() * (MMS_AMPLITUDE * self.scalar(p).0)
+    }
+
+    /// Exact gradient `∇u = A a ⊗ ∇g`.
+    pub fn gradient(self, p: &Point3<Real>) -> Matrix3<Real> {
+        self.direction() * self.scalar(p).1.transpose() * MMS_AMPLITUDE
+    }
+
+    /// Body force `f = A [3π² μ g a − (λ+μ) (Hess g) a]` that makes `u` an equilibrium.
+    pub fn body_force(self, material: &Material, p: &Point3<Real>) -> Vector3<Real> {
+        let (lambda, mu) = material.lame();
+        let (g, _, hess) = self.scalar(p);
+        let a = self.direction();
+        (a * (3.0 * PI * PI * mu * g) - hess * a * (lambda + mu)) * MMS_AMPLITUDE
+    }
+}
+
+/// Relative errors of a discrete displacement against an exact field.
+#[derive(Clone, Copy, Debug)]
+pub struct FieldErrors {
+    /// `‖u − u_h‖_L2 / ‖u‖_L2`.
+    pub l2_relative: Real,
+    /// `|u − u_h|_H1 / |u|_H1`.
+    pub h1_relative: Real,
+}
+
+/// Errors of `displacement` (DOF vector of `u_h`) against `exact`, with a quadrature of degree
+/// `degree` per element (higher than the element's).
+pub fn field_errors(
+    d: &dyn Discretization,
+    displacement: &[Real],
+    degree: usize,
+    exact: &dyn Fn(&Point3<Real>) -> (Vector3<Real>, Matrix3<Real>),
+) -> FieldErrors {
+    let (mut e0, mut n0, mut e1, mut n1) = (0.0, 0.0, 0.0, 0.0);
+    d.visit_field(displacement, degree, &mut |s| {
+        let (u, grad) = exact(&s.position);
+        e0 += s.weight * (u - s.displacement).norm_squared();
+        n0 += s.weight * u.norm_squared();
+        e1 += s.weight * (grad - s.gradient).norm_squared();
+        n1 += s.weight * grad.norm_squared();
+    });
+    FieldErrors { l2_relative: (e0 / n0).sqrt(), h1_relative: (e1 / n1).sqrt() }
+}
+
+/// Observed convergence rate between two refinements: `log(e1/e2) / log(h1/h2)`.
+pub fn rate(error_coarse: Real, error_fine: Real, h_coarse: Real, h_fine: Real) -> Real {
+    (error_coarse / error_fine).ln() / (h_coarse / h_fine).ln()
+}
+
+/// Scalar DOFs of nodes whose rest position satisfies `on_boundary`, with values from `value`
+/// (for nodal backends, whose rest DOFs are node positions).
+pub fn nodal_dirichlet(
+    d: &dyn Discretization,
+    on_boundary: impl Fn(&Point3<Real>) -> bool,
+    value: impl Fn(&Point3<Real>) -> Vector3<Real>,
+) -> Vec<(usize, Real)> {
+    d.rest_dofs()
+        .chunks_exact(3)
+        .enumerate()
+        .filter_map(|(n, p)| {
+            let p = Point3::new(p[0], p[1], p[2]);
+            on_boundary(&p).then(|| {
+                let u = value(&p);
+                (0..3).map(move |c| (3 * n + c, u[c]))
+            })
+        })
+        .flatten()
+        .collect()
+}
+
+/// True on the boundary of the unit cube (to rounding).
+pub fn on_unit_cube_boundary(p: &Point3<Real>) -> bool {
+    p.coords.iter().any(|&x| x.abs() < 1e-9 || (x - 1.0).abs() < 1e-9)
+}
+
+/// The static cantilever of benchmarks.md §2.
+pub mod cantilever {
+    use super::*;
+
+    /// Beam length along x.
+    pub const LENGTH: Real = 4.0;
+    /// Gravity.
+    pub const GRAVITY: Real = 9.81;
+
+    /// E = 1e6, the given ν, ρ = 1000.
+    pub fn material(poisson_ratio: Real) -> Material {
+        Material::new(1e6, poisson_ratio, 1000.0).expect("benchmark material is valid")
+    }
+
+    /// Body force density `(0, 0, −ρg)`.
+    pub fn force_density(material: &Material) -> Vector3<Real> {
+        Vector3::new(0.0, 0.0, -material.density * GRAVITY)
+    }
+
+    /// Clamped DOFs: every node on x = 0 (nodal backends).
+    pub fn clamped_dofs(d: &dyn Discretization) -> Vec<(usize, Real)> {
+        nodal_dirichlet(d, |p| p.x.abs() < 1e-9, |_| Vector3::zeros())
+    }
+
+    /// Gauss points (2×2 per cell of an `m × m` grid) and weights on the tip face x = 4.
+    pub fn tip_face_quadrature(m: usize) -> Vec<(Point3<Real>, Real)> {
+        let g = 0.5 / 3f64.sqrt();
+        let h = 1.0 / m as Real;
+        let mut points = Vec::with_capacity(4 * m * m);
+        for j in 0..m {
+            for k in 0..m {
+                for (a, b) in [(-g, -g), (-g, g), (g, -g), (g, g)] {
+                    let y = (j as Real + 0.5 + a) * h;
+                    let z = (k as Real + 0.5 + b) * h;
+                    points.push((Point3::new(LENGTH, y, z), h * h / 4.0));
+                }
+            }
+        }
+        points
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The body force must equal −div σ(u) computed by finite differences of σ.
+    #[test]
+    fn body_force_is_minus_divergence_of_stress_by_finite_differences() {
+        let material = Material::new(1e6, 0.3, 1000.0).unwrap();
+        let (lambda, mu) = material.lame();
+        for case in [Manufactured::Sin111, Manufactured::Cos123] {
+            let stress = |p: &Point3<Real>| {
+                let g = case.gradient(p);
+                let eps = (g + g.transpose()) * 0.5;
+                Matrix3::identity() * (lambda * eps.trace()) + eps * (2.0 * mu)
+            };
+            for p in [Point3::new(0.3, 0.6, 0.2), Point3::new(0.81, 0.17, 0.55)] {
+                let h = 1e-5;
+                let mut div = Vector3::zeros();
+                for j in 0..3 {
+                    let mut e = Vector3::zeros();
+                    e[j] = h;
+                    let ds = (stress(&(p + e)) - stress(&(p - e))) / (2.0 * h);
+                    div += ds.column(j);
+                }
+                let f = case.body_force(&material, &p);
+                assert!((f + div).norm() < 1e-6 * f.norm(), "{case:?} at {p}: f = {f}, -div = {}", -div);
+            }
+            // the gradient is the derivative of the displacement
+            let p = Point3::new(0.42, 0.31, 0.77);
+            let h = 1e-6;
+            for j in 0..3 {
+                let mut e = Vector3::zeros();
+                e[j] = h;
+                let fd = (case.displacement(&(p + e)) - case.displacement(&(p - e))) / (2.0 * h);
+                assert!((fd - case.gradient(&p).column(j)).norm() < 1e-8);
+            }
+        }
+    }
+}

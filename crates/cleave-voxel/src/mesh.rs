@@ -1,0 +1,398 @@
+//! The voxel cube mesh (mueller2004 §2.1–2.2): equal cubes in a hash map keyed by integer
+//! coordinates, shared corner nodes, one 24×24 stiffness for the whole mesh, per-cube rotations,
+//! lumped mass, trilinear embedding, and a matrix-free warped stiffness action.
+
+use crate::stiffness::{corner_offset, corner_signs, cube_stiffness};
+use cleave_core::quadrature::gauss_legendre;
+use cleave_core::rotation::extract_rotation;
+use cleave_core::{
+    BlockSet, BlockSetBuilder, Discretization, EmbedError, Embedding, FieldSample, Mass, Material,
+    Matrix3, Point3, Real, RotationStats, Vector3,
+};
+use nalgebra::DMatrix;
+use std::collections::HashMap;
+
+/// Why a voxel mesh could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum VoxelError {
+    /// Cell size not finite and positive.
+    #[error("cube size must be finite and > 0, got {0}")]
+    CellSize(Real),
+    /// No cubes.
+    #[error("the voxel mesh has no cubes")]
+    Empty,
+    /// The same cube listed twice.
+    #[error("cube ({0}, {1}, {2}) is listed twice")]
+    DuplicateCube(i32, i32, i32),
+    /// Internal block bookkeeping failed (a bug).
+    #[error(transparent)]
+    Blocks(#[from] cleave_core::BlockSetError),
+}
+
+/// Iterations of the warm-started rotation extraction per step; the warm start makes 2–3 enough
+/// for smooth motion, the cap bounds the cost of violent steps.
+const ROTATION_ITERATIONS: usize = 8;
+
+/// A mesh of equal cubes with shared corners.
+#[derive(Debug)]
+pub struct VoxelMesh {
+    material: Material,
+    origin: Point3<Real>,
+    h: Real,
+    cells: Vec<[i32; 3]>,
+    cell_index: HashMap<[i32; 3], u32>,
+    cube_nodes: Vec<[u32; 8]>,
+    node_coords: Vec<[i32; 3]>,
+    rest: Vec<Real>,
+    mass: Mass,
+    stiffness: Box<[Real; 576]>,
+    blocks: BlockSet,
+    epoch: u64,
+}
+
+impl VoxelMesh {
+    /// Builds the mesh of the cubes `[origin + h·c, origin + h·(c+1)]` for `c ∈ cells`.
+    pub fn new(material: Material, origin: Point3<Real>, h: Real, cells: &[[i32; 3]]) -> Result<Self, VoxelError> {
+        if !(h.is_finite() && h > 0.0) {
+            return Err(VoxelError::CellSize(h));
+        }
+        if cells.is_empty() {
+            return Err(VoxelError::Empty);
+        }
+        // Sort cubes and nodes z-major so that cubes near in index share nodes near in index: the
+        // parallel scatter's per-chunk DOF ranges then barely overlap.
+        let mut cells = cells.to_vec();
+        cells.sort_unstable_by_key(|c| (c[2], c[1], c[0]));
+        if let Some(w) = cells.windows(2).find(|w| w[0] == w[1]) {
+            return Err(VoxelError::DuplicateCube(w[0][0], w[0][1], w[0][2]));
+        }
+        let mut node_coords: Vec<[i32; 3]> = Vec::with_capacity(cells.len() * 2);
+        for cell in &cells {
+            for c in 0..8 {
+                let o = corner_offset(c);
+                node_coords.push([cell[0] + o[0], cell[1] + o[1], cell[2] + o[2]]);
+            }
+        }
+        node_coords.sort_unstable_by_key(|c| (c[2], c[1], c[0]));
+        node_coords.dedup();
+        let node_index: HashMap<[i32; 3], u32> =
+            node_coords.iter().enumerate().map(|(i, c)| (*c, i as u32)).collect();
+        let cube_nodes: Vec<[u32; 8]> = cells
+            .iter()
+            .map(|cell| {
+                std::array::from_fn(|c| {
+                    let o = corner_offset(c);
+                    node_index[&[cell[0] + o[0], cell[1] + o[1], cell[2] + o[2]]]
+                })
+            })
+            .collect();
+        let cell_index = cells.iter().enumerate().map(|(i, c)| (*c, i as u32)).collect();
+        let rest: Vec<Real> = node_coords
+            .iter()
+            .flat_map(|c| (0..3).map(move |a| origin[a] + h * c[a] as Real))
+            .collect();
+        let mut lumped = vec![0.0; 3 * node_coords.len()];
+        let corner_mass = material.density * h * h * h / 8.0;
+        for nodes in &cube_nodes {
+            for &n in nodes {
+                for a in 0..3 {
+                    lumped[3 * n as usize + a] += corner_mass;
+                }
+            }
+        }
+        let stiffness = Box::new(cube_stiffness(&material, h));
+        let mut builder = BlockSetBuilder::new();
+        let rest_id = builder.add_rest_matrix(DMatrix::from_row_slice(24, 24, &stiffness[..]))?;
+        for (cube, nodes) in cube_nodes.iter().enumerate() {
+            builder.push(nodes, rest_id, Some(cube as u32));
+        }
+        let blocks = builder.finish(node_coords.len())?;
+        Ok(Self {
+            material,
+            origin,
+            h,
+            cells,
+            cell_index,
+            cube_nodes,
+            node_coords,
+            rest,
+            mass: Mass::Lumped(lumped),
+            stiffness,
+            blocks,
+            epoch: 0,
+        })
+    }
+
+    /// A box of `dims` cubes of edge `h` with minimum corner `origin`.
+    pub fn from_box(material: Material, origin: Point3<Real>, h: Real, dims: [usize; 3]) -> Result<Self, VoxelError> {
+        let mut cells = Vec::with_capacity(dims.iter().product());
+        for k in 0..dims[2] as i32 {
+            for j in 0..dims[1] as i32 {
+                for i in 0..dims[0] as i32 {
+                    cells.push([i, j, k]);
+                }
+            }
+        }
+        Self::new(material, origin, h, &cells)
+    }
+
+    /// The material of every cube.
+    pub fn material(&self) -> &Material {
+        &self.material
+    }
+
+    /// Cube edge length.
+    pub fn cell_size(&self) -> Real {
+        self.h
+    }
+
+    /// Minimum corner of cube (0, 0, 0).
+    pub fn origin(&self) -> Point3<Real> {
+        self.origin
+    }
+
+    /// Integer coordinates of the cubes, z-major order (cube index = position here).
+    pub fn cells(&self) -> &[[i32; 3]] {
+        &self.cells
+    }
+
+    /// Number of cubes.
+    pub fn num_cubes(&self) -> usize {
+        self.cells.len()
+    }
+
+    /// Node indices of every cube, corner `c = bx + 2by + 4bz`.
+    pub fn cube_nodes(&self) -> &[[u32; 8]] {
+        &self.cube_nodes
+    }
+
+    /// Integer lattice coordinates of every node.
+    pub fn node_coords(&self) -> &[[i32; 3]] {
+        &self.node_coords
+    }
+
+    /// The one rest stiffness (row-major 24×24) all cubes share.
+    pub fn cube_stiffness(&self) -> &[Real; 576] {
+        &self.stiffness
+    }
+
+    /// Index of the cube at integer coordinates, if present (O(1), the paper's hash table).
+    pub fn cube_at(&self, cell: [i32; 3]) -> Option<usize> {
+        self.cell_index.get(&cell).map(|&i| i as usize)
+    }
+
+    /// Deformation gradient at the center of `cube`: `F = Σ_c x_c s_cᵀ / (4h)`, which is `I` at
+    /// rest (docs/math/voxel-stiffness.md §4).
+    pub fn center_gradient(&self, cube: usize, x: &[Real]) -> Matrix3<Real> {
+        let mut f = Matrix3::zeros();
+        for (c, &n) in self.cube_nodes[cube].iter().enumerate() {
+            let s = corner_signs(c);
+            let p = &x[3 * n as usize..3 * n as usize + 3];
+            for a in 0..3 {
+                for b in 0..3 {
+                    f[(a, b)] += p[a] * s[b];
+                }
+            }
+        }
+        f / (4.0 * self.h)
+    }
+
+    /// Trilinear shape values and reference gradients at local coordinates `t ∈ [0,1]³`.
+    fn shape(&self, t: [Real; 3]) -> ([Real; 8], [[Real; 3]; 8]) {
+        let mut values = [0.0; 8];
+        let mut gradients = [[0.0; 3]; 8];
+        for c in 0..8 {
+            let o = corner_offset(c);
+            let f: [Real; 3] = std::array::from_fn(|a| if o[a] == 1 { t[a] } else { 1.0 - t[a] });
+            let d: [Real; 3] = std::array::from_fn(|a| if o[a] == 1 { 1.0 } else { -1.0 } / self.h);
+            values[c] = f[0] * f[1] * f[2];
+            gradients[c] = [d[0] * f[1] * f[2], f[0] * d[1] * f[2], f[0] * f[1] * d[2]];
+        }
+        (values, gradients)
+    }
+
+    fn gauss_points(min_degree: usize) -> (&'static [Real], &'static [Real]) {
+        let n = (min_degree / 2 + 1).clamp(1, 6);
+        gauss_legendre(n).expect("1..=6 point rules exist")
+    }
+
+    /// The fast warped kernel shared by the force and the stiffness action:
+    /// `out_c += s · R K (Rᵀ v_c − offset_c)` where `offset` is the rest corners (force) or zero.
+    fn warped_cube_product(&self, rotations: &[Matrix3<Real>], v: &[Real], subtract_rest: bool, scale: Real, out: &mut [Real]) {
+        let k = &*self.stiffness;
+        self.blocks.scatter_plan().scatter_add(out, |cube, buf, base| {
+            let nodes = &self.cube_nodes[cube];
+            let r = &rotations[cube];
+            let mut local = [0.0; 24];
+            for (c, &n) in nodes.iter().enumerate() {
+                let i = 3 * n as usize;
+                let (p0, p1, p2) = (v[i], v[i + 1], v[i + 2]);
+                for a in 0..3 {
+                    // (Rᵀ p)_a = Σ_b R_ba p_b
+                    let mut value = r[(0, a)] * p0 + r[(1, a)] * p1 + r[(2, a)] * p2;
+                    if subtract_rest {
+                        value -= self.rest[i + a];
+                    }
+                    local[3 * c + a] = value;
+                }
+            }
+            let mut y = [0.0; 24];
+            for (row, y_row) in y.iter_mut().enumerate() {
+                let k_row = &k[24 * row..24 * row + 24];
+                let mut sum = 0.0;
+                for col in 0..24 {
+                    sum += k_row[col] * local[col];
+                }
+                *y_row = sum;
+            }
+            for (c, &n) in nodes.iter().enumerate() {
+                let i = 3 * n as usize - base;
+                let (q0, q1, q2) = (y[3 * c], y[3 * c + 1], y[3 * c + 2]);
+                for a in 0..3 {
+                    buf[i + a] += scale * (r[(a, 0)] * q0 + r[(a, 1)] * q1 + r[(a, 2)] * q2);
+                }
+            }
+        });
+    }
+}
+
+impl Discretization for VoxelMesh {
+    fn name(&self) -> &str {
+        "voxel"
+    }
+
+    fn num_nodes(&self) -> usize {
+        self.node_coords.len()
+    }
+
+    fn rest_dofs(&self) -> &[Real] {
+        &self.rest
+    }
+
+    fn epoch(&self) -> u64 {
+        self.epoch
+    }
+
+    fn mass(&self) -> &Mass {
+        &self.mass
+    }
+
+    fn num_frames(&self) -> usize {
+        self.cells.len()
+    }
+
+    fn write_rotations(&self, x: &[Real], rotations: &mut [Matrix3<Real>]) -> RotationStats {
+        use rayon::prelude::*;
+        let inverted = rotations
+            .par_iter_mut()
+            .enumerate()
+            .map(|(cube, r)| {
+                let f = self.center_gradient(cube, x);
+                *r = extract_rotation(&f, r, ROTATION_ITERATIONS);
+                usize::from(f.determinant() <= 0.0)
+            })
+            .sum();
+        RotationStats { inverted }
+    }
+
+    fn blocks(&self) -> &BlockSet {
+        &self.blocks
+    }
+
+    fn add_internal_force(&self, rotations: &[Matrix3<Real>], x: &[Real], out: &mut [Real]) {
+        self.warped_cube_product(rotations, x, true, -1.0, out);
+    }
+
+    fn add_stiffness_action(&self, rotations: &[Matrix3<Real>], dx: &[Real], scale: Real, out: &mut [Real]) {
+        self.warped_cube_product(rotations, dx, false, scale, out);
+    }
+
+    fn add_load(&self, force_density: &dyn Fn(&Point3<Real>) -> Vector3<Real>, out: &mut [Real]) {
+        // 3 points per axis: exact for trilinear × quadratic force densities.
+        let (points, weights) = Self::gauss_points(4);
+        let jacobian = (self.h / 2.0).powi(3);
+        for (cube, cell) in self.cells.iter().enumerate() {
+            let corner = self.origin + Vector3::new(cell[0] as Real, cell[1] as Real, cell[2] as Real) * self.h;
+            for (qa, wa) in points.iter().zip(weights) {
+                for (qb, wb) in points.iter().zip(weights) {
+                    for (qc, wc) in points.iter().zip(weights) {
+                        let t = [(qa + 1.0) / 2.0, (qb + 1.0) / 2.0, (qc + 1.0) / 2.0];
+                        let p = corner + Vector3::new(t[0], t[1], t[2]) * self.h;
+                        let f = force_density(&p) * (wa * wb * wc * jacobian);
+                        let (values, _) = self.shape(t);
+                        for (c, &n) in self.cube_nodes[cube].iter().enumerate() {
+                            for a in 0..3 {
+                                out[3 * n as usize + a] += values[c] * f[a];
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    fn embed(&self, points: &[Point3<Real>]) -> Result<Embedding, EmbedError> {
+        let mut embedding = Embedding::new();
+        let tolerance = 1e-9;
+        for (index, p) in points.iter().enumerate() {
+            let local = (p - self.origin) / self.h;
+            let base = [local.x.floor() as i32, local.y.floor() as i32, local.z.floor() as i32];
+            // A point on a cube face or corner may belong to a neighbour only: try the cube the
+            // floor names first, then the neighbours whose closed cube still contains the point.
+            let mut found = None;
+            'search: for dz in [0, -1, 1] {
+                for dy in [0, -1, 1] {
+                    for dx in [0, -1, 1] {
+                        let cell = [base[0] + dx, base[1] + dy, base[2] + dz];
+                        if let Some(cube) = self.cube_at(cell) {
+                            let t: [Real; 3] = std::array::from_fn(|a| local[a] - cell[a] as Real);
+                            if t.iter().all(|&t| (-tolerance..=1.0 + tolerance).contains(&t)) {
+                                found = Some((cube, t.map(|t| t.clamp(0.0, 1.0))));
+                                break 'search;
+                            }
+                        }
+                    }
+                }
+            }
+            let Some((cube, t)) = found else {
+                return Err(EmbedError::Outside { index, x: p.x, y: p.y, z: p.z });
+            };
+            let (weights, _) = self.shape(t);
+            embedding.push_row(&self.cube_nodes[cube], &weights);
+        }
+        Ok(embedding)
+    }
+
+    fn visit_field(&self, displacement: &[Real], min_degree: usize, visit: &mut dyn FnMut(&FieldSample)) {
+        let (points, weights) = Self::gauss_points(min_degree);
+        let jacobian = (self.h / 2.0).powi(3);
+        for (cube, cell) in self.cells.iter().enumerate() {
+            let corner = self.origin + Vector3::new(cell[0] as Real, cell[1] as Real, cell[2] as Real) * self.h;
+            for (qa, wa) in points.iter().zip(weights) {
+                for (qb, wb) in points.iter().zip(weights) {
+                    for (qc, wc) in points.iter().zip(weights) {
+                        let t = [(qa + 1.0) / 2.0, (qb + 1.0) / 2.0, (qc + 1.0) / 2.0];
+                        let (values, gradients) = self.shape(t);
+                        let mut u = Vector3::zeros();
+                        let mut grad = Matrix3::zeros();
+                        for (c, &n) in self.cube_nodes[cube].iter().enumerate() {
+                            let d = &displacement[3 * n as usize..3 * n as usize + 3];
+                            for a in 0..3 {
+                                u[a] += values[c] * d[a];
+                                for b in 0..3 {
+                                    grad[(a, b)] += d[a] * gradients[c][b];
+                                }
+                            }
+                        }
+                        visit(&FieldSample {
+                            position: corner + Vector3::new(t[0], t[1], t[2]) * self.h,
+                            weight: wa * wb * wc * jacobian,
+                            displacement: u,
+                            gradient: grad,
+                        });
+                    }
+                }
+            }
+        }
+    }
+}
