@@ -1,0 +1,226 @@
+//! MCAP recording with Foxglove conventions: the deformed surface as `foxglove.SceneUpdate` JSON,
+//! per-step statistics and timeline events as JSON on their own channels. Chunks are flushed to
+//! disk every few frames so a killed run keeps what it computed; `finish` writes the summary.
+
+use cleave_core::{Point3, Real};
+use serde_json::{json, Value};
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+/// Topic of the deformed surface.
+pub const SURFACE_TOPIC: &str = "/surface";
+/// Topic of the per-step statistics.
+pub const STATS_TOPIC: &str = "/stats";
+/// Topic of timeline and topology events.
+pub const EVENTS_TOPIC: &str = "/events";
+
+/// JSON schema of the subset of `foxglove.SceneUpdate` we write (entities of triangle lists).
+const SCENE_UPDATE_SCHEMA: &str = r#"{
+  "title": "foxglove.SceneUpdate",
+  "description": "An update to the entities displayed in a 3D scene",
+  "type": "object",
+  "properties": {
+    "deletions": { "type": "array", "items": { "type": "object" } },
+    "entities": {
+      "type": "array",
+      "items": {
+        "type": "object",
+        "properties": {
+          "timestamp": { "type": "object", "properties": { "sec": { "type": "integer" }, "nsec": { "type": "integer" } } },
+          "frame_id": { "type": "string" },
+          "id": { "type": "string" },
+          "lifetime": { "type": "object", "properties": { "sec": { "type": "integer" }, "nsec": { "type": "integer" } } },
+          "frame_locked": { "type": "boolean" },
+          "metadata": { "type": "array", "items": { "type": "object" } },
+          "arrows": { "type": "array" }, "cubes": { "type": "array" }, "spheres": { "type": "array" },
+          "cylinders": { "type": "array" }, "lines": { "type": "array" }, "texts": { "type": "array" },
+          "models": { "type": "array" },
+          "triangles": {
+            "type": "array",
+            "items": {
+              "type": "object",
+              "properties": {
+                "pose": { "type": "object" },
+                "points": { "type": "array", "items": { "type": "object", "properties": { "x": { "type": "number" }, "y": { "type": "number" }, "z": { "type": "number" } } } },
+                "color": { "type": "object", "properties": { "r": { "type": "number" }, "g": { "type": "number" }, "b": { "type": "number" }, "a": { "type": "number" } } },
+                "colors": { "type": "array" },
+                "indices": { "type": "array", "items": { "type": "integer", "minimum": 0 } }
+              }
+            }
+          }
+        }
+      }
+    }
+  }
+}"#;
+
+const STATS_SCHEMA: &str = r#"{
+  "title": "cleave.StepStats",
+  "description": "One implicit step: solver effort, phase timings [s], energies [J], contact and probe data",
+  "type": "object",
+  "properties": {
+    "step": { "type": "integer" }, "time": { "type": "number" },
+    "iterations": { "type": "integer" }, "residual": { "type": "number" },
+    "seconds": { "type": "object" }, "energy": { "type": "object" },
+    "inverted_elements": { "type": "integer" }, "active_contacts": { "type": "integer" },
+    "surface": { "type": "object" }, "probes": { "type": "object" }
+  }
+}"#;
+
+const EVENT_SCHEMA: &str = r#"{
+  "title": "cleave.Event",
+  "description": "A timeline or topology event, or the end of the run",
+  "type": "object",
+  "properties": { "time": { "type": "number" }, "kind": { "type": "string" }, "message": { "type": "string" } }
+}"#;
+
+/// A failed recording operation.
+#[derive(Debug, thiserror::Error)]
+#[error("recording {path}: {message}")]
+pub struct RecordError {
+    /// The MCAP path.
+    pub path: PathBuf,
+    /// What failed.
+    pub message: String,
+}
+
+/// Writes one run into one MCAP file.
+pub struct Recorder {
+    path: PathBuf,
+    writer: Option<mcap::Writer<BufWriter<File>>>,
+    surface: u16,
+    stats: u16,
+    events: u16,
+    sequence: u32,
+    frames_since_flush: u32,
+    flush_every: u32,
+}
+
+fn nanoseconds(time: Real) -> u64 {
+    (time.max(0.0) * 1e9).round() as u64
+}
+
+impl Recorder {
+    /// Creates the file and declares the channels.
+    pub fn create(path: &Path, scene_name: &str, flush_every: u32) -> Result<Self, RecordError> {
+        let error = |message: String| RecordError { path: path.to_path_buf(), message };
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent).map_err(|e| error(format!("cannot create directory: {e}")))?;
+        }
+        let file = File::create(path).map_err(|e| error(format!("cannot create file: {e}")))?;
+        let mut writer = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Zstd))
+            .profile("")
+            .library(concat!("cleave ", env!("CARGO_PKG_VERSION")))
+            .create(BufWriter::new(file))
+            .map_err(|e| error(e.to_string()))?;
+        let mut metadata = BTreeMap::new();
+        metadata.insert("scene".to_string(), scene_name.to_string());
+        let mut channel = |schema_name: &str, schema: &str, topic: &str| -> Result<u16, RecordError> {
+            let schema_id = writer.add_schema(schema_name, "jsonschema", schema.as_bytes()).map_err(|e| error(e.to_string()))?;
+            writer.add_channel(schema_id, topic, "json", &metadata).map_err(|e| error(e.to_string()))
+        };
+        let surface = channel("foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA, SURFACE_TOPIC)?;
+        let stats = channel("cleave.StepStats", STATS_SCHEMA, STATS_TOPIC)?;
+        let events = channel("cleave.Event", EVENT_SCHEMA, EVENTS_TOPIC)?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            writer: Some(writer),
+            surface,
+            stats,
+            events,
+            sequence: 0,
+            frames_since_flush: 0,
+            flush_every: flush_every.max(1),
+        })
+    }
+
+    /// The file being written.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn write(&mut self, channel: u16, time: Real, value: &Value) -> Result<(), RecordError> {
+        let bytes = serde_json::to_vec(value).map_err(|e| RecordError { path: self.path.clone(), message: e.to_string() })?;
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: self.sequence,
+            log_time: nanoseconds(time),
+            publish_time: nanoseconds(time),
+        };
+        self.sequence += 1;
+        let writer = self.writer.as_mut().ok_or_else(|| RecordError { path: self.path.clone(), message: "already finished".into() })?;
+        writer.write_to_known_channel(&header, &bytes).map_err(|e| RecordError { path: self.path.clone(), message: e.to_string() })
+    }
+
+    /// Records the deformed surface as one entity with one triangle list.
+    pub fn surface(&mut self, time: Real, points: &[Point3<Real>], triangles: &[[u32; 3]]) -> Result<(), RecordError> {
+        let ns = nanoseconds(time);
+        let stamp = json!({ "sec": ns / 1_000_000_000, "nsec": ns % 1_000_000_000 });
+        let points: Vec<Value> = points.iter().map(|p| json!({ "x": p.x, "y": p.y, "z": p.z })).collect();
+        let indices: Vec<u32> = triangles.iter().flatten().copied().collect();
+        let message = json!({
+            "deletions": [],
+            "entities": [{
+                "timestamp": stamp,
+                "frame_id": "world",
+                "id": "solid",
+                "lifetime": { "sec": 0, "nsec": 0 },
+                "frame_locked": false,
+                "metadata": [],
+                "arrows": [], "cubes": [], "spheres": [], "cylinders": [], "lines": [], "texts": [], "models": [],
+                "triangles": [{
+                    "pose": { "position": { "x": 0.0, "y": 0.0, "z": 0.0 }, "orientation": { "x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0 } },
+                    "points": points,
+                    "color": { "r": 0.85, "g": 0.62, "b": 0.38, "a": 1.0 },
+                    "colors": [],
+                    "indices": indices,
+                }],
+            }],
+        });
+        self.write(self.surface, time, &message)
+    }
+
+    /// Records a step's statistics, flushing to disk every `flush_every` calls.
+    pub fn stats(&mut self, time: Real, stats: &Value) -> Result<(), RecordError> {
+        self.write(self.stats, time, stats)?;
+        self.frames_since_flush += 1;
+        if self.frames_since_flush >= self.flush_every {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Records an event and flushes, so events survive a crash right after them.
+    pub fn event(&mut self, time: Real, kind: &str, message: &str) -> Result<(), RecordError> {
+        self.write(self.events, time, &json!({ "time": time, "kind": kind, "message": message }))?;
+        self.flush()
+    }
+
+    /// Closes the current chunk and pushes it to the file.
+    pub fn flush(&mut self) -> Result<(), RecordError> {
+        self.frames_since_flush = 0;
+        if let Some(writer) = self.writer.as_mut() {
+            writer.flush().map_err(|e| RecordError { path: self.path.clone(), message: e.to_string() })?;
+        }
+        Ok(())
+    }
+
+    /// Writes the summary and closes the file.
+    pub fn finish(&mut self) -> Result<(), RecordError> {
+        if let Some(mut writer) = self.writer.take() {
+            writer.finish().map_err(|e| RecordError { path: self.path.clone(), message: e.to_string() })?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Recorder {
+    fn drop(&mut self) {
+        // A recorder dropped without `finish` (an unwinding panic, an early return) still closes
+        // the file properly; errors here have nowhere to go.
+        let _ = self.finish();
+    }
+}

@@ -1,0 +1,277 @@
+//! The RON scene schema (documented field by field in `docs/scene-format.md`). Every struct
+//! denies unknown fields; values that can be checked alone (materials, time step, normals) are
+//! checked while parsing, so their errors carry the file's line and column.
+
+use cleave_core::{Material, Real};
+use serde::Deserialize;
+
+/// A whole scene.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// Human-readable name (recorded in the MCAP).
+    pub name: String,
+    /// The solid.
+    pub object: Object,
+    /// Its material.
+    pub material: ValidMaterial,
+    /// How it is discretized.
+    pub discretization: DiscretizationSpec,
+    /// Time step `h` [s].
+    pub time_step: Positive,
+    /// Number of steps to run.
+    pub steps: u64,
+    /// Gravity [m/s²]; default `(0, 0, -9.81)` (z up, as Foxglove).
+    #[serde(default = "default_gravity")]
+    pub gravity: [Real; 3],
+    /// Linear solver; default CG.
+    #[serde(default)]
+    pub solver: SolverSpec,
+    /// Pinned regions.
+    #[serde(default)]
+    pub pins: Vec<PinSpec>,
+    /// Colliders.
+    #[serde(default)]
+    pub colliders: Vec<ColliderSpec>,
+    /// Material points whose positions are logged every step.
+    #[serde(default)]
+    pub probes: Vec<ProbeSpec>,
+    /// Timed events (cuts, fracture, refinement).
+    #[serde(default)]
+    pub timeline: Vec<EventSpec>,
+    /// Where and how often to record.
+    #[serde(default)]
+    pub output: OutputSpec,
+}
+
+fn default_gravity() -> [Real; 3] {
+    [0.0, 0.0, -9.81]
+}
+
+/// A material validated while parsing.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(try_from = "Material")]
+pub struct ValidMaterial(pub Material);
+
+impl TryFrom<Material> for ValidMaterial {
+    type Error = cleave_core::MaterialError;
+    fn try_from(material: Material) -> Result<Self, Self::Error> {
+        material.validate().map(|()| Self(material))
+    }
+}
+
+/// A finite number > 0.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(try_from = "Real")]
+pub struct Positive(pub Real);
+
+impl TryFrom<Real> for Positive {
+    type Error = String;
+    fn try_from(value: Real) -> Result<Self, Self::Error> {
+        if value.is_finite() && value > 0.0 {
+            Ok(Self(value))
+        } else {
+            Err(format!("expected a finite number > 0, got {value}"))
+        }
+    }
+}
+
+/// A non-zero finite vector, normalized while parsing.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(try_from = "[Real; 3]")]
+pub struct Direction(pub [Real; 3]);
+
+impl TryFrom<[Real; 3]> for Direction {
+    type Error = String;
+    fn try_from(v: [Real; 3]) -> Result<Self, Self::Error> {
+        let norm = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        if norm.is_finite() && norm > 0.0 {
+            Ok(Self(v.map(|x| x / norm)))
+        } else {
+            Err(format!("expected a non-zero finite direction, got ({}, {}, {})", v[0], v[1], v[2]))
+        }
+    }
+}
+
+/// The solid being simulated.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum Object {
+    /// A closed triangle mesh from an OBJ file (path relative to the scene file).
+    Mesh {
+        /// OBJ path.
+        path: String,
+        /// Placement of the mesh in the world.
+        #[serde(default)]
+        transform: Transform,
+    },
+    /// An axis-aligned box `[min, max]`.
+    Box {
+        /// minimum corner
+        min: [Real; 3],
+        /// maximum corner
+        max: [Real; 3],
+    },
+}
+
+/// `p ↦ translation + R (scale · p)`, then optionally lifted so its lowest point sits at `rest_on`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Transform {
+    /// Uniform scale.
+    #[serde(default = "one")]
+    pub scale: Real,
+    /// Rotation as Euler angles in degrees about x, then y, then z (extrinsic).
+    #[serde(default)]
+    pub rotation_degrees: [Real; 3],
+    /// Translation [m].
+    #[serde(default)]
+    pub translation: [Real; 3],
+    /// If set, translate along z so the lowest vertex is at this height [m].
+    #[serde(default)]
+    pub lowest_z: Option<Real>,
+}
+
+fn one() -> Real {
+    1.0
+}
+
+impl Default for Transform {
+    fn default() -> Self {
+        Self { scale: 1.0, rotation_degrees: [0.0; 3], translation: [0.0; 3], lowest_z: None }
+    }
+}
+
+/// Discretization and its parameters.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum DiscretizationSpec {
+    /// Voxel cube FEM (mueller2004).
+    Voxel {
+        /// Cube edge [m]; exactly one of `cell_size` and `target_cubes`.
+        #[serde(default)]
+        cell_size: Option<Positive>,
+        /// Pick the cube edge that gives about this many cubes.
+        #[serde(default)]
+        target_cubes: Option<usize>,
+    },
+}
+
+/// Linear solver.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum SolverSpec {
+    /// Sparse Cholesky, symbolic factorization reused.
+    Cholesky,
+    /// Block-Jacobi preconditioned conjugate gradients, warm-started.
+    ConjugateGradient {
+        /// relative residual to reach (default 1e-6)
+        #[serde(default = "default_tolerance")]
+        tolerance: Positive,
+        /// iteration limit (default 2000)
+        #[serde(default = "default_iterations")]
+        max_iterations: usize,
+        /// assembled (`true`) or matrix-free (default)
+        #[serde(default)]
+        assembled: bool,
+    },
+}
+
+fn default_tolerance() -> Positive {
+    Positive(1e-6)
+}
+
+fn default_iterations() -> usize {
+    2000
+}
+
+impl Default for SolverSpec {
+    fn default() -> Self {
+        Self::ConjugateGradient { tolerance: default_tolerance(), max_iterations: default_iterations(), assembled: false }
+    }
+}
+
+/// Pinned material.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum PinSpec {
+    /// Every node whose rest position lies in the box `[min, max]` is held fixed.
+    Region {
+        /// minimum corner
+        min: [Real; 3],
+        /// maximum corner
+        max: [Real; 3],
+    },
+}
+
+/// A collider.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum ColliderSpec {
+    /// The half-space above a plane.
+    Plane {
+        /// a point on the plane
+        point: [Real; 3],
+        /// normal pointing into the allowed side
+        normal: Direction,
+        /// penalty stiffness per contact point [N/m]
+        stiffness: Positive,
+        /// normal damping per contact point [N·s/m]
+        #[serde(default)]
+        damping: Real,
+    },
+}
+
+/// A logged material point.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbeSpec {
+    /// Key in the stats channel.
+    pub name: String,
+    /// Rest position [m].
+    pub position: [Real; 3],
+}
+
+/// A timed event.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum EventSpec {
+    /// Cut along a plane at `time`.
+    Cut {
+        /// when [s]
+        time: Real,
+        /// a point on the plane
+        point: [Real; 3],
+        /// its normal
+        normal: Direction,
+    },
+}
+
+/// Recording options.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// MCAP path (relative to the working directory); overridden by `--out`.
+    #[serde(default)]
+    pub mcap: Option<String>,
+    /// Record the surface every this many steps.
+    #[serde(default = "one_u32")]
+    pub surface_every: u32,
+    /// Flush (close a chunk and write it to disk) every this many steps.
+    #[serde(default = "ten_u32")]
+    pub flush_every: u32,
+}
+
+fn one_u32() -> u32 {
+    1
+}
+
+fn ten_u32() -> u32 {
+    10
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        Self { mcap: None, surface_every: 1, flush_every: 10 }
+    }
+}

@@ -1,0 +1,111 @@
+//! Bad scenes fail with clear messages: file:line:column for syntax and values, the mesh path and
+//! the offending edge for meshes, never a panic.
+
+use cleave_scene::run::parse_scene;
+use cleave_scene::{SceneError, Simulation};
+use std::path::Path;
+
+const GOOD: &str = r#"// a small box
+Scene(
+    name: "box",
+    object: Box(min: (0.0, 0.0, 0.0), max: (1.0, 0.5, 0.5)),
+    material: (youngs_modulus: 1.0e5, poisson_ratio: 0.3, density: 1000.0),
+    discretization: Voxel(cell_size: 0.25),
+    time_step: 0.01,
+    steps: 3,
+)
+"#;
+
+fn parse_error(text: &str) -> (usize, usize, String) {
+    match parse_scene(Path::new("test.ron"), text) {
+        Err(SceneError::Parse { line, column, message, .. }) => (line, column, message),
+        other => panic!("expected a parse error, got {other:?}"),
+    }
+}
+
+#[test]
+fn the_reference_scene_parses_and_builds() {
+    let loaded = parse_scene(Path::new("test.ron"), GOOD).unwrap();
+    let mut simulation = Simulation::build(&loaded, None).unwrap();
+    simulation.step().unwrap();
+}
+
+#[test]
+fn unknown_field_names_its_line() {
+    let text = GOOD.replace("    steps: 3,\n", "    steps: 3,\n    colour: \"red\",\n");
+    let (line, _, message) = parse_error(&text);
+    assert_eq!(line, 9, "{message}");
+    assert!(message.contains("colour"), "{message}");
+}
+
+#[test]
+fn malformed_value_names_its_line_and_column() {
+    let text = GOOD.replace("time_step: 0.01", "time_step: \"fast\"");
+    let (line, column, message) = parse_error(&text);
+    assert_eq!(line, 7, "{message}");
+    assert!(column > 5, "column {column}");
+    let text = GOOD.replace("time_step: 0.01", "time_step: -0.01");
+    let (line, _, message) = parse_error(&text);
+    assert_eq!(line, 7);
+    assert!(message.contains("-0.01"), "{message}");
+}
+
+#[test]
+fn incompressible_material_is_rejected_with_the_value() {
+    let text = GOOD.replace("poisson_ratio: 0.3", "poisson_ratio: 0.5");
+    let (line, _, message) = parse_error(&text);
+    assert_eq!(line, 5, "{message}");
+    assert!(message.contains("Poisson ratio") && message.contains("0.5"), "{message}");
+    let shown = parse_scene(Path::new("scenes/x.ron"), &text).unwrap_err().to_string();
+    assert!(shown.starts_with("scenes/x.ron:5:"), "{shown}");
+}
+
+fn mesh_scene(mesh: &str) -> String {
+    format!(
+        r#"Scene(
+    name: "mesh",
+    object: Mesh(path: "{mesh}"),
+    material: (youngs_modulus: 1.0e5, poisson_ratio: 0.3, density: 1000.0),
+    discretization: Voxel(cell_size: 0.25),
+    time_step: 0.01,
+    steps: 1,
+)"#
+    )
+}
+
+#[test]
+fn missing_mesh_names_the_resolved_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("s.ron");
+    let loaded = parse_scene(&scene, &mesh_scene("meshes/nowhere.obj")).unwrap();
+    let error = Simulation::build(&loaded, None).err().expect("must fail");
+    let message = error.to_string();
+    assert!(matches!(error, SceneError::Mesh { .. }), "{message}");
+    assert!(message.contains("meshes/nowhere.obj") && message.contains("cannot open"), "{message}");
+}
+
+#[test]
+fn open_mesh_names_the_boundary_edge() {
+    let dir = tempfile::tempdir().unwrap();
+    // a unit cube with its last triangle (on the top face) removed
+    let obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+               f 1 3 2\nf 1 4 3\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\nf 4 1 5\nf 4 5 8\nf 5 6 7\n";
+    std::fs::write(dir.path().join("open.obj"), obj).unwrap();
+    let scene = dir.path().join("s.ron");
+    let loaded = parse_scene(&scene, &mesh_scene("open.obj")).unwrap();
+    let error = Simulation::build(&loaded, None).err().expect("must fail");
+    let message = error.to_string();
+    assert!(message.contains("open.obj"), "{message}");
+    // the missing triangle (5, 7, 8) in 0-based indices is (4, 6, 7): its edges are open
+    assert!(message.to_lowercase().contains("open") || message.contains("boundary"), "{message}");
+    let edges_of_missing = ["(4, 6)", "(6, 4)", "(6, 7)", "(7, 6)", "(4, 7)", "(7, 4)"];
+    assert!(edges_of_missing.iter().any(|edge| message.contains(edge)), "{message}");
+}
+
+#[test]
+fn a_cut_on_a_backend_that_cannot_cut_is_a_clear_build_error() {
+    let text = GOOD.replace("    steps: 3,\n", "    steps: 3,\n    timeline: [Cut(time: 0.1, point: (0.5, 0.0, 0.0), normal: (1.0, 0.0, 0.0))],\n");
+    let loaded = parse_scene(Path::new("test.ron"), &text).unwrap();
+    let message = Simulation::build(&loaded, None).err().expect("must fail").to_string();
+    assert!(message.contains("timeline[0]") && message.contains("voxel"), "{message}");
+}
