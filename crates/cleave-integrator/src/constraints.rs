@@ -38,6 +38,9 @@ pub struct Constraints {
     pub contact_points: Option<Embedding>,
     /// Plane colliders.
     pub planes: Vec<PlaneCollider>,
+    /// A constant load added to gravity, one entry per scalar DOF (empty = none): the boundary
+    /// terms of weakly imposed Dirichlet data (DG), which backends hand over as a vector.
+    pub extra_load: Vec<Real>,
 }
 
 impl Constraints {

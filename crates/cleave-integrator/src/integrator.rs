@@ -190,6 +190,15 @@ impl Integrator {
                     }
                 });
         }
+        if !self.constraints.extra_load.is_empty() {
+            if self.constraints.extra_load.len() != n {
+                return Err(StepErrorKind::Solver(format!(
+                    "extra load has length {} but the system has {n} DOFs",
+                    self.constraints.extra_load.len()
+                )));
+            }
+            self.external_force.iter_mut().zip(&self.constraints.extra_load).for_each(|(f, e)| *f += e);
+        }
         self.pinned = vec![false; n];
         for &d in &self.constraints.pinned_dofs {
             if d >= n {

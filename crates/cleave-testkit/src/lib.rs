@@ -3,7 +3,9 @@
 //! differences, the transposed product, the shared block kernel, an exact linear field — and
 //! returns what it measured, so a failing test says by how much.
 
+pub mod compare;
 pub mod problems;
+pub mod stability;
 
 use cleave_core::{AssemblyPattern, BlockRanks, Discretization, Matrix3, Point3, Real, Vector3};
 use nalgebra::Rotation3;

@@ -1,0 +1,806 @@
+//! The backend-neutral half of `cargo xtask compare`: how a backend registers
+//! ([`CompareBackend`]), the benchmark problems of `docs/math/benchmarks.md` §1–§3 run through the
+//! trait ([`run_problem`]), the refinement study under a time budget ([`run_study`]), CSV rows,
+//! observed rates and the Richardson reference of the cantilever. No file or terminal I/O: xtask
+//! writes what these functions return.
+
+use crate::problems::{Manufactured, cantilever, field_errors, on_unit_cube_boundary};
+use cleave_core::{Discretization, Material, Point3, Real, Vector3};
+use cleave_integrator::{Constraints, Integrator, Settings, Solver, StepErrorKind, solve_static};
+use std::fmt;
+use std::time::Instant;
+
+/// A box of equal cells: `dims` cells of edge `h` from `origin`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoxGrid {
+    /// Minimum corner.
+    pub origin: Point3<Real>,
+    /// Cell edge [m].
+    pub h: Real,
+    /// Cells along x, y, z.
+    pub dims: [usize; 3],
+}
+
+impl BoxGrid {
+    /// The maximum corner.
+    pub fn max_corner(&self) -> Point3<Real> {
+        self.origin + Vector3::new(self.dims[0] as Real, self.dims[1] as Real, self.dims[2] as Real) * self.h
+    }
+}
+
+/// Dirichlet data known when the discretization is built: a boundary point `p` is on the
+/// Dirichlet part iff `region(p)`, where `u = value(p)`. Nodal backends pin the nodes in the
+/// region; weak (DG) backends test boundary faces (e.g. their centroids) and integrate `value`.
+pub struct DirichletSpec<'a> {
+    /// Is this boundary point on the Dirichlet part?
+    pub region: &'a (dyn Fn(&Point3<Real>) -> bool + Sync),
+    /// The prescribed displacement there.
+    pub value: &'a (dyn Fn(&Point3<Real>) -> Vector3<Real> + Sync),
+}
+
+impl DirichletSpec<'_> {
+    /// No Dirichlet boundary at all.
+    pub fn none() -> DirichletSpec<'static> {
+        fn nowhere(_: &Point3<Real>) -> bool {
+            false
+        }
+        fn zero(_: &Point3<Real>) -> Vector3<Real> {
+            Vector3::zeros()
+        }
+        DirichletSpec { region: &nowhere, value: &zero }
+    }
+}
+
+/// A discretization built for one run, with its boundary conditions in the form the solvers use.
+pub struct BuiltProblem {
+    /// The discretization.
+    pub discretization: Box<dyn Discretization>,
+    /// Strongly imposed DOF values `(scalar DOF, value)`: eliminated by the solvers.
+    pub prescribed: Vec<(usize, Real)>,
+    /// Weakly imposed data as a load vector (the `g` terms of Nitsche/interior-penalty boundary
+    /// integrals), added to the right-hand side; empty when there is none.
+    pub dirichlet_load: Vec<Real>,
+    /// Number of elements (cells, tets, polyhedra).
+    pub elements: usize,
+}
+
+/// A backend that could not build a problem, with the backend's own message.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BuildError(pub String);
+
+impl fmt::Display for BuildError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for BuildError {}
+
+/// The extreme start states of the stability suite (benchmarks.md §4).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExtremeCase {
+    /// One element inverted: a node pushed through its opposite face.
+    PreInverted,
+    /// An element of volume 1e-9 of its neighbours'.
+    Sliver,
+    /// The body stretched 100× along x (from the clamped face) and released at once.
+    Stretch100,
+}
+
+impl ExtremeCase {
+    /// All three, in table order.
+    pub const ALL: [ExtremeCase; 3] = [ExtremeCase::PreInverted, ExtremeCase::Sliver, ExtremeCase::Stretch100];
+
+    /// Short name for tables and CSV.
+    pub fn key(self) -> &'static str {
+        match self {
+            ExtremeCase::PreInverted => "pre-inverted",
+            ExtremeCase::Sliver => "sliver",
+            ExtremeCase::Stretch100 => "stretch-100x",
+        }
+    }
+}
+
+/// Why a backend cannot run an extreme case (printed in the stability table).
+#[derive(Clone, Debug, PartialEq)]
+pub struct NotApplicable(pub String);
+
+/// One registration of a backend with the comparison harness. Adding a backend to `cargo xtask
+/// compare` and `cargo xtask stability` is one `impl` of this trait plus one line in
+/// `cleave_registry::backends()`.
+pub trait CompareBackend: Send + Sync {
+    /// Backend name as in `--backend` ("voxel", "dg").
+    fn name(&self) -> &str;
+
+    /// Variants compared separately ("trilinear"; "bz-1", "ip-2", …).
+    fn variants(&self) -> Vec<String>;
+
+    /// Builds the box `grid` of one material with the Dirichlet data `dirichlet`.
+    fn build_box(
+        &self,
+        variant: &str,
+        material: &Material,
+        grid: &BoxGrid,
+        dirichlet: &DirichletSpec,
+    ) -> Result<BuiltProblem, BuildError>;
+
+    /// The linear solver of time-stepping runs (dynamic beam, stability grid).
+    fn dynamic_solver(&self, _variant: &str) -> Solver {
+        Solver::Cholesky
+    }
+
+    /// The start positions of an extreme case for a problem built from `grid` (whose x = min
+    /// face is clamped). The default handles the stretch (an affine map of the rest DOFs, exact
+    /// for every backend whose rest DOFs represent the identity field) and declines the others.
+    fn extreme_start(
+        &self,
+        _variant: &str,
+        case: ExtremeCase,
+        built: &BuiltProblem,
+        grid: &BoxGrid,
+    ) -> Result<Vec<Real>, NotApplicable> {
+        match case {
+            ExtremeCase::Stretch100 => Ok(built
+                .discretization
+                .rest_dofs()
+                .chunks_exact(3)
+                .flat_map(|p| [grid.origin.x + 100.0 * (p[0] - grid.origin.x), p[1], p[2]])
+                .collect()),
+            _ => Err(NotApplicable("not implemented by this backend's registration".into())),
+        }
+    }
+}
+
+/// The benchmark problems a study runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Problem {
+    /// §1 `sin111` on the unit cube, u = 0 on the boundary.
+    MmsSin111,
+    /// §1 `cos123`, inhomogeneous Dirichlet data on the whole boundary.
+    MmsCos123,
+    /// §2 static cantilever, ν = 0.3.
+    Cantilever,
+    /// §3 dynamic beam.
+    Dynamic,
+}
+
+impl Problem {
+    /// Every problem, in report order.
+    pub const ALL: [Problem; 4] = [Problem::MmsSin111, Problem::MmsCos123, Problem::Cantilever, Problem::Dynamic];
+
+    /// Name in the CSV `problem` column.
+    pub fn key(self) -> &'static str {
+        match self {
+            Problem::MmsSin111 => "mms-sin111",
+            Problem::MmsCos123 => "mms-cos123",
+            Problem::Cantilever => "cantilever",
+            Problem::Dynamic => "dynamic",
+        }
+    }
+
+    /// The problem named `key`.
+    pub fn from_key(key: &str) -> Option<Problem> {
+        Problem::ALL.into_iter().find(|p| p.key() == key)
+    }
+
+    /// Refinement levels n (h = 1/n): MMS from 2, the beams from 1.
+    pub fn sizes(self) -> Vec<usize> {
+        let first = match self {
+            Problem::MmsSin111 | Problem::MmsCos123 => 2,
+            Problem::Cantilever | Problem::Dynamic => 1,
+        };
+        (0..8).map(|k| first << k).collect()
+    }
+
+    /// The grid of refinement level `n`.
+    pub fn grid(self, n: usize) -> BoxGrid {
+        let dims = match self {
+            Problem::MmsSin111 | Problem::MmsCos123 => [n, n, n],
+            Problem::Cantilever | Problem::Dynamic => [4 * n, n, n],
+        };
+        BoxGrid { origin: Point3::origin(), h: 1.0 / n as Real, dims }
+    }
+}
+
+/// Steps and step size of the dynamic beam (benchmarks.md §3).
+pub const DYNAMIC_STEPS: usize = 120;
+/// Time step of the dynamic beam [s].
+pub const DYNAMIC_TIME_STEP: Real = 1.0 / 60.0;
+
+/// One run of one problem: a CSV row. `None` = not applicable (an empty CSV cell).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Row {
+    /// [`Problem::key`].
+    pub problem: String,
+    /// Backend name.
+    pub backend: String,
+    /// Variant name.
+    pub variant: String,
+    /// Refinement level (h = 1/n).
+    pub n: usize,
+    /// Scalar DOFs.
+    pub dofs: usize,
+    /// Elements.
+    pub elements: usize,
+    /// Stored nonzeros of the assembled matrix.
+    pub nnz: Option<usize>,
+    /// Relative L2 error (MMS).
+    pub l2_rel_error: Option<Real>,
+    /// Relative H1 seminorm error (MMS).
+    pub h1_rel_error: Option<Real>,
+    /// Mean u_z over the face x = 4 [m] (beams; the dynamic beam at the last step).
+    pub tip_uz_avg: Option<Real>,
+    /// u_z at (4, 0.5, 0.5) [m].
+    pub tip_uz_point: Option<Real>,
+    /// Strain energy ½ fᵀu [J] (static problems).
+    pub strain_energy: Option<Real>,
+    /// Building the discretization, loads and Dirichlet data, pattern and symbolic factorization
+    /// (dynamic: building the discretization and the integrator) [s].
+    pub seconds_setup: Option<Real>,
+    /// Assembling matrix values (dynamic: forces and matrices over all steps) [s].
+    pub seconds_assemble: Option<Real>,
+    /// Numeric factorization and solve (dynamic: over all steps) [s].
+    pub seconds_solve: Option<Real>,
+    /// Wall clock of the whole run, error evaluation excluded [s].
+    pub seconds_total: Option<Real>,
+    /// Peak resident memory of the run [MB] (filled by the caller that can measure it).
+    pub peak_rss_mb: Option<Real>,
+    /// Repetitions the timings are the median of.
+    pub repetitions: usize,
+    /// Time steps (dynamic).
+    pub steps: Option<usize>,
+    /// Rotation extraction over all steps (dynamic) [s].
+    pub seconds_rotations: Option<Real>,
+}
+
+/// The CSV header, in column order.
+pub const CSV_HEADER: &str = "problem,backend,variant,n,dofs,elements,nnz,l2_rel_error,h1_rel_error,tip_uz_avg,tip_uz_point,strain_energy,seconds_setup,seconds_assemble,seconds_solve,seconds_total,peak_rss_mb,repetitions,steps,seconds_rotations";
+
+fn cell<T: fmt::Display>(value: Option<T>) -> String {
+    value.map_or_else(String::new, |v| v.to_string())
+}
+
+fn real_cell(value: Option<Real>) -> String {
+    value.map_or_else(String::new, |v| format!("{v:.9e}"))
+}
+
+impl Row {
+    /// `backend/variant`, the name of a method in tables and plots.
+    pub fn method(&self) -> String {
+        format!("{}/{}", self.backend, self.variant)
+    }
+
+    /// The row as one CSV line (no newline), columns as in [`CSV_HEADER`].
+    pub fn to_csv(&self) -> String {
+        [
+            self.problem.clone(),
+            self.backend.clone(),
+            self.variant.clone(),
+            self.n.to_string(),
+            self.dofs.to_string(),
+            self.elements.to_string(),
+            cell(self.nnz),
+            real_cell(self.l2_rel_error),
+            real_cell(self.h1_rel_error),
+            real_cell(self.tip_uz_avg),
+            real_cell(self.tip_uz_point),
+            real_cell(self.strain_energy),
+            real_cell(self.seconds_setup),
+            real_cell(self.seconds_assemble),
+            real_cell(self.seconds_solve),
+            real_cell(self.seconds_total),
+            real_cell(self.peak_rss_mb),
+            self.repetitions.to_string(),
+            cell(self.steps),
+            real_cell(self.seconds_rotations),
+        ]
+        .join(",")
+    }
+
+    /// Parses a line written by [`Row::to_csv`]; the error names the column.
+    pub fn from_csv(line: &str) -> Result<Row, String> {
+        let f: Vec<&str> = line.trim_end().split(',').collect();
+        let columns = CSV_HEADER.split(',').count();
+        if f.len() != columns {
+            return Err(format!("expected {columns} columns, found {}: {line}", f.len()));
+        }
+        let name = |i: usize| CSV_HEADER.split(',').nth(i).unwrap_or("?");
+        let int = |i: usize| f[i].parse::<usize>().map_err(|e| format!("column {}: {e} in {:?}", name(i), f[i]));
+        let opt_int = |i: usize| if f[i].is_empty() { Ok(None) } else { int(i).map(Some) };
+        let opt_real = |i: usize| {
+            if f[i].is_empty() {
+                Ok(None)
+            } else {
+                f[i].parse::<Real>().map(Some).map_err(|e| format!("column {}: {e} in {:?}", name(i), f[i]))
+            }
+        };
+        Ok(Row {
+            problem: f[0].to_string(),
+            backend: f[1].to_string(),
+            variant: f[2].to_string(),
+            n: int(3)?,
+            dofs: int(4)?,
+            elements: int(5)?,
+            nnz: opt_int(6)?,
+            l2_rel_error: opt_real(7)?,
+            h1_rel_error: opt_real(8)?,
+            tip_uz_avg: opt_real(9)?,
+            tip_uz_point: opt_real(10)?,
+            strain_energy: opt_real(11)?,
+            seconds_setup: opt_real(12)?,
+            seconds_assemble: opt_real(13)?,
+            seconds_solve: opt_real(14)?,
+            seconds_total: opt_real(15)?,
+            peak_rss_mb: opt_real(16)?,
+            repetitions: int(17)?,
+            steps: opt_int(18)?,
+            seconds_rotations: opt_real(19)?,
+        })
+    }
+}
+
+/// Parses a whole CSV written by the harness (header checked).
+pub fn parse_csv(text: &str) -> Result<Vec<Row>, String> {
+    let mut lines = text.lines();
+    match lines.next() {
+        Some(header) if header.trim_end() == CSV_HEADER => {}
+        other => return Err(format!("header {other:?} is not {CSV_HEADER:?}")),
+    }
+    lines.filter(|l| !l.trim().is_empty()).map(Row::from_csv).collect()
+}
+
+/// Why a run failed.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RunError {
+    /// The backend could not build the problem.
+    Build(BuildError),
+    /// A solve or a step failed.
+    Solve(String),
+}
+
+impl fmt::Display for RunError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RunError::Build(e) => write!(f, "build failed: {e}"),
+            RunError::Solve(e) => write!(f, "solve failed: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for RunError {}
+
+impl From<BuildError> for RunError {
+    fn from(e: BuildError) -> Self {
+        RunError::Build(e)
+    }
+}
+
+impl From<StepErrorKind> for RunError {
+    fn from(e: StepErrorKind) -> Self {
+        RunError::Solve(e.to_string())
+    }
+}
+
+fn clamped_face(p: &Point3<Real>) -> bool {
+    p.x.abs() < 1e-9
+}
+
+/// Mean u_z over the tip face and u_z at its centre, by embedding (any backend).
+fn tip_values(d: &dyn Discretization, displacement: &[Real], n: usize) -> Result<(Real, Real), RunError> {
+    let quadrature = cantilever::tip_face_quadrature(n);
+    let mut points: Vec<Point3<Real>> = quadrature.iter().map(|(p, _)| *p).collect();
+    points.push(Point3::new(cantilever::LENGTH, 0.5, 0.5));
+    let embedding = d.embed(&points).map_err(|e| RunError::Solve(format!("embedding the tip: {e}")))?;
+    let average = quadrature.iter().enumerate().map(|(i, (_, w))| w * embedding.point(displacement, i).z).sum();
+    Ok((average, embedding.point(displacement, quadrature.len()).z))
+}
+
+fn add(a: &mut [Real], b: &[Real]) {
+    a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
+}
+
+/// One run of `problem` at level `n` (timings of this single run).
+pub fn run_problem(backend: &dyn CompareBackend, variant: &str, problem: Problem, n: usize) -> Result<Row, RunError> {
+    let grid = problem.grid(n);
+    let mut row = Row {
+        problem: problem.key().into(),
+        backend: backend.name().into(),
+        variant: variant.into(),
+        n,
+        repetitions: 1,
+        ..Default::default()
+    };
+    match problem {
+        Problem::MmsSin111 | Problem::MmsCos123 => {
+            let case = if problem == Problem::MmsSin111 { Manufactured::Sin111 } else { Manufactured::Cos123 };
+            let material = Material::new(1e6, 0.3, 1000.0).expect("benchmark material is valid");
+            let value = move |p: &Point3<Real>| case.displacement(p);
+            let dirichlet = DirichletSpec { region: &on_unit_cube_boundary, value: &value };
+            let clock = Instant::now();
+            let built = backend.build_box(variant, &material, &grid, &dirichlet)?;
+            let d = built.discretization.as_ref();
+            let mut load = vec![0.0; 3 * d.num_nodes()];
+            d.add_load(&|p| case.body_force(&material, p), &mut load);
+            add(&mut load, &built.dirichlet_load);
+            let seconds_build = clock.elapsed().as_secs_f64();
+            let solution = solve_static(d, &load, &built.prescribed)?;
+            row.seconds_total = Some(clock.elapsed().as_secs_f64());
+            let errors = field_errors(d, &solution.displacement, 6, &|p| (case.displacement(p), case.gradient(p)));
+            fill_static(&mut row, &built, &load, &solution, seconds_build);
+            row.l2_rel_error = Some(errors.l2_relative);
+            row.h1_rel_error = Some(errors.h1_relative);
+        }
+        Problem::Cantilever => {
+            let material = cantilever::material(0.3);
+            let dirichlet = DirichletSpec { region: &clamped_face, value: &|_| Vector3::zeros() };
+            let clock = Instant::now();
+            let built = backend.build_box(variant, &material, &grid, &dirichlet)?;
+            let d = built.discretization.as_ref();
+            let mut load = vec![0.0; 3 * d.num_nodes()];
+            let f = cantilever::force_density(&material);
+            d.add_load(&|_| f, &mut load);
+            add(&mut load, &built.dirichlet_load);
+            let seconds_build = clock.elapsed().as_secs_f64();
+            let solution = solve_static(d, &load, &built.prescribed)?;
+            row.seconds_total = Some(clock.elapsed().as_secs_f64());
+            let (average, point) = tip_values(d, &solution.displacement, n)?;
+            fill_static(&mut row, &built, &load, &solution, seconds_build);
+            row.tip_uz_avg = Some(average);
+            row.tip_uz_point = Some(point);
+        }
+        Problem::Dynamic => {
+            let material = Material::new(1e8, 0.3, 1000.0)
+                .and_then(|m| m.with_damping(0.0, 0.01))
+                .expect("benchmark material is valid");
+            let dirichlet = DirichletSpec { region: &clamped_face, value: &|_| Vector3::zeros() };
+            let clock = Instant::now();
+            let built = backend.build_box(variant, &material, &grid, &dirichlet)?;
+            let d = built.discretization.as_ref();
+            let mut settings = Settings::new(DYNAMIC_TIME_STEP);
+            settings.rayleigh_beta = material.rayleigh_beta;
+            settings.solver = backend.dynamic_solver(variant);
+            let constraints = Constraints {
+                pinned_dofs: built.prescribed.iter().map(|&(dof, _)| dof).collect(),
+                extra_load: built.dirichlet_load.clone(),
+                ..Default::default()
+            };
+            let mut integrator =
+                Integrator::new(d, settings, constraints).map_err(|e| RunError::Solve(e.to_string()))?;
+            row.seconds_setup = Some(clock.elapsed().as_secs_f64());
+            let (mut rotations, mut assembly, mut solve) = (0.0, 0.0, 0.0);
+            for _ in 0..DYNAMIC_STEPS {
+                let report = integrator.step(d).map_err(|e| RunError::Solve(e.to_string()))?;
+                rotations += report.seconds.rotations;
+                assembly += report.seconds.assembly;
+                solve += report.seconds.solve;
+            }
+            row.seconds_total = Some(clock.elapsed().as_secs_f64());
+            let displacement: Vec<Real> =
+                integrator.positions().iter().zip(d.rest_dofs()).map(|(x, x0)| x - x0).collect();
+            let (average, point) = tip_values(d, &displacement, n)?;
+            row.dofs = 3 * d.num_nodes();
+            row.elements = built.elements;
+            row.nnz = integrator.matrix_stats().map(|(nnz, _)| nnz);
+            row.tip_uz_avg = Some(average);
+            row.tip_uz_point = Some(point);
+            row.seconds_assemble = Some(assembly);
+            row.seconds_solve = Some(solve);
+            row.seconds_rotations = Some(rotations);
+            row.steps = Some(DYNAMIC_STEPS);
+        }
+    }
+    Ok(row)
+}
+
+fn fill_static(
+    row: &mut Row,
+    built: &BuiltProblem,
+    load: &[Real],
+    solution: &cleave_integrator::StaticSolution,
+    seconds_build: Real,
+) {
+    row.dofs = 3 * built.discretization.num_nodes();
+    row.elements = built.elements;
+    row.nnz = Some(solution.nnz);
+    // ½ fᵀu as in benchmarks.md (equal to ½ uᵀKu at equilibrium with homogeneous data).
+    row.strain_energy = Some(0.5 * load.iter().zip(&solution.displacement).map(|(f, u)| f * u).sum::<Real>());
+    row.seconds_setup = Some(seconds_build + solution.seconds_setup);
+    row.seconds_assemble = Some(solution.seconds_assemble);
+    row.seconds_solve = Some(solution.seconds_solve);
+}
+
+fn median(mut values: Vec<Real>) -> Real {
+    values.sort_by(Real::total_cmp);
+    values[values.len() / 2]
+}
+
+/// `repetitions` runs of one level; the timings are medians, everything else from the first run
+/// (the runs are deterministic).
+pub fn run_repeated(
+    backend: &dyn CompareBackend,
+    variant: &str,
+    problem: Problem,
+    n: usize,
+    repetitions: usize,
+) -> Result<Row, RunError> {
+    let mut rows = Vec::with_capacity(repetitions);
+    for _ in 0..repetitions.max(1) {
+        rows.push(run_problem(backend, variant, problem, n)?);
+    }
+    let mut row = rows[0].clone();
+    let med = |f: fn(&Row) -> Option<Real>| {
+        let values: Vec<Real> = rows.iter().filter_map(f).collect();
+        (!values.is_empty()).then(|| median(values))
+    };
+    row.seconds_setup = med(|r| r.seconds_setup);
+    row.seconds_assemble = med(|r| r.seconds_assemble);
+    row.seconds_solve = med(|r| r.seconds_solve);
+    row.seconds_total = med(|r| r.seconds_total);
+    row.seconds_rotations = med(|r| r.seconds_rotations);
+    row.repetitions = rows.len();
+    Ok(row)
+}
+
+/// Limits of one refinement study.
+#[derive(Clone, Debug)]
+pub struct StudyPlan {
+    /// Wall-clock seconds one (backend, variant, problem) may spend.
+    pub budget_seconds: Real,
+    /// Largest refinement level tried.
+    pub max_n: usize,
+    /// Stop before a level whose DOFs would exceed this (memory guard for direct solvers).
+    pub max_dofs: usize,
+    /// Runs predicted longer than this are done once, shorter ones three times.
+    pub single_run_seconds: Real,
+}
+
+impl StudyPlan {
+    /// The full study with a budget.
+    pub fn full(budget_seconds: Real) -> Self {
+        Self { budget_seconds, max_n: usize::MAX, max_dofs: 1_200_000, single_run_seconds: 3.0 }
+    }
+
+    /// The CI study: small levels only.
+    pub fn quick(problem: Problem) -> Self {
+        let max_n = match problem {
+            Problem::MmsSin111 | Problem::MmsCos123 => 8,
+            Problem::Cantilever => 4,
+            Problem::Dynamic => 2,
+        };
+        Self { budget_seconds: 30.0, max_n, max_dofs: 100_000, single_run_seconds: 3.0 }
+    }
+}
+
+/// What the caller sees of a study as it runs (progress, memory, files).
+pub trait StudyObserver {
+    /// About to run level `n` (e.g. reset the peak-RSS counter).
+    fn before_level(&mut self, _problem: Problem, _n: usize, _repetitions: usize) {}
+    /// Peak resident memory since `before_level`, in MB, if the caller can measure it.
+    fn peak_rss_mb(&mut self) -> Option<Real> {
+        None
+    }
+    /// A level finished: the row is final (write it now).
+    fn row_done(&mut self, _row: &Row) {}
+}
+
+/// Observer that does nothing.
+pub struct Silent;
+impl StudyObserver for Silent {}
+
+/// How a study ended.
+#[derive(Clone, Debug)]
+pub struct StudyOutcome {
+    /// One row per finished level.
+    pub rows: Vec<Row>,
+    /// Why it stopped (budget, DOF cap, last level, error).
+    pub stop_reason: String,
+}
+
+/// Refines `problem` for one method until the plan's budget, DOF cap or level cap stops it. The
+/// next level's wall time is predicted as the last one's times the last growth factor clamped to
+/// [8, 16] (16 with only one level done), and the study stops before a level whose predicted cost
+/// (times its repetitions) would overrun the budget.
+pub fn run_study(
+    backend: &dyn CompareBackend,
+    variant: &str,
+    problem: Problem,
+    plan: &StudyPlan,
+    observer: &mut dyn StudyObserver,
+) -> StudyOutcome {
+    let mut rows: Vec<Row> = Vec::new();
+    let mut walls: Vec<Real> = Vec::new();
+    let mut spent = 0.0;
+    for n in problem.sizes() {
+        if n > plan.max_n {
+            return StudyOutcome { rows, stop_reason: format!("level cap n ≤ {}", plan.max_n) };
+        }
+        let (predicted, predicted_dofs) = match (walls.as_slice(), rows.last()) {
+            ([.., previous, last], Some(row)) => (last * (last / previous).clamp(8.0, 16.0), row.dofs * 8),
+            ([last], Some(row)) => (last * 16.0, row.dofs * 8),
+            _ => (0.0, 0),
+        };
+        if predicted_dofs > plan.max_dofs {
+            return StudyOutcome {
+                rows,
+                stop_reason: format!("next level n = {n} would have ~{predicted_dofs} DOFs > {}", plan.max_dofs),
+            };
+        }
+        let repetitions = if walls.is_empty() || predicted <= plan.single_run_seconds { 3 } else { 1 };
+        if spent + predicted * repetitions as Real > plan.budget_seconds {
+            return StudyOutcome {
+                rows,
+                stop_reason: format!(
+                    "budget: n = {n} predicted {:.1} s × {repetitions} after {spent:.1} s of {:.0} s",
+                    predicted, plan.budget_seconds
+                ),
+            };
+        }
+        observer.before_level(problem, n, repetitions);
+        let clock = Instant::now();
+        let result = run_repeated(backend, variant, problem, n, repetitions);
+        let wall = clock.elapsed().as_secs_f64();
+        spent += wall;
+        match result {
+            Ok(mut row) => {
+                row.peak_rss_mb = observer.peak_rss_mb();
+                observer.row_done(&row);
+                walls.push(wall / repetitions as Real);
+                rows.push(row);
+            }
+            Err(e) => return StudyOutcome { rows, stop_reason: format!("n = {n}: {e}") },
+        }
+    }
+    StudyOutcome { rows, stop_reason: "largest level reached".into() }
+}
+
+/// Observed rate `log(e_i/e_{i+1}) / log(n_{i+1}/n_i)` between consecutive rows (h = 1/n).
+pub fn observed_rates(rows: &[&Row], error: impl Fn(&Row) -> Option<Real>) -> Vec<Option<Real>> {
+    let mut rates = vec![None];
+    for w in rows.windows(2) {
+        let rate = match (error(w[0]), error(w[1])) {
+            (Some(a), Some(b)) if a > 0.0 && b > 0.0 => Some((a / b).ln() / (w[1].n as Real / w[0].n as Real).ln()),
+            _ => None,
+        };
+        rates.push(rate);
+    }
+    rates
+}
+
+/// λ of the clamped-edge singularity at ν = 0.3 (benchmarks.md §2): errors behave like h^(2λ).
+pub const CANTILEVER_LAMBDA: Real = 0.711;
+
+/// Richardson extrapolation of a quantity converging like `h^rate` from levels `h` and `h/ratio`.
+pub fn richardson(coarse: Real, fine: Real, ratio: Real, rate: Real) -> Real {
+    fine + (fine - coarse) / (ratio.powf(rate) - 1.0)
+}
+
+/// The extrapolated cantilever tip deflection and where it came from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TipReference {
+    /// Extrapolated mean u_z over the tip face [m].
+    pub value: Real,
+    /// `backend/variant` it was extrapolated from.
+    pub method: String,
+    /// The two levels used.
+    pub levels: (usize, usize),
+    /// Their values.
+    pub values: (Real, Real),
+    /// Estimated relative error of the finest run of that method, |fine − value| / |value|.
+    pub finest_error: Real,
+}
+
+/// Richardson with rate 2λ from the two finest cantilever runs of each method; the reference is
+/// the extrapolation of the method whose finest run has the smallest estimated error.
+pub fn cantilever_reference(rows: &[Row]) -> Option<TipReference> {
+    let mut methods: Vec<String> =
+        rows.iter().filter(|r| r.problem == Problem::Cantilever.key()).map(Row::method).collect();
+    methods.dedup();
+    methods
+        .into_iter()
+        .filter_map(|method| {
+            let mut own: Vec<&Row> =
+                rows.iter().filter(|r| r.problem == Problem::Cantilever.key() && r.method() == method).collect();
+            own.sort_by_key(|r| r.n);
+            let [.., coarse, fine] = own.as_slice() else { return None };
+            let (a, b) = (coarse.tip_uz_avg?, fine.tip_uz_avg?);
+            let value = richardson(a, b, fine.n as Real / coarse.n as Real, 2.0 * CANTILEVER_LAMBDA);
+            Some(TipReference {
+                value,
+                method,
+                levels: (coarse.n, fine.n),
+                values: (a, b),
+                finest_error: ((b - value) / value).abs(),
+            })
+        })
+        .min_by(|a, b| a.finest_error.total_cmp(&b.finest_error))
+}
+
+/// kaufmann2008 Table 1 (ms on a Core2 Duo 2.4 GHz, 10×10×10 grid): label, the (backend,
+/// variant) it corresponds to here, and integration / assembly / solve.
+pub const KAUFMANN2008_TABLE1: [(&str, &str, &str, [Real; 3]); 4] = [
+    ("BZ-lin", "dg", "bz-1", [532.0, 22.0, 656.0]),
+    ("IP-lin", "dg", "ip-1", [1437.0, 87.0, 734.0]),
+    ("BZ-quad", "dg", "bz-2", [3062.0, 152.0, 7797.0]),
+    ("IP-quad", "dg", "ip-2", [8344.0, 621.0, 8484.0]),
+];
+
+/// Our integration / assembly / solve seconds on the 10×10×10 grid of Table 1.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Table1Timings {
+    /// Building the discretization (element integrals) [s].
+    pub integration: Real,
+    /// Pattern, symbolic factorization and matrix values [s].
+    pub assembly: Real,
+    /// Numeric factorization and solve [s].
+    pub solve: Real,
+    /// Scalar DOFs.
+    pub dofs: usize,
+}
+
+/// Times one backend variant on the Table 1 problem: the unit cube as 10×10×10 cells, clamped at
+/// x = 0 under gravity (E = 1e6, ν = 0.3, ρ = 1000), static solve; medians of `repetitions`.
+pub fn table1_timings(
+    backend: &dyn CompareBackend,
+    variant: &str,
+    repetitions: usize,
+) -> Result<Table1Timings, RunError> {
+    let grid = BoxGrid { origin: Point3::origin(), h: 0.1, dims: [10, 10, 10] };
+    let material = cantilever::material(0.3);
+    let dirichlet = DirichletSpec { region: &clamped_face, value: &|_| Vector3::zeros() };
+    let mut samples = Vec::new();
+    for _ in 0..repetitions.max(1) {
+        let clock = Instant::now();
+        let built = backend.build_box(variant, &material, &grid, &dirichlet)?;
+        let integration = clock.elapsed().as_secs_f64();
+        let d = built.discretization.as_ref();
+        let mut load = vec![0.0; 3 * d.num_nodes()];
+        let f = cantilever::force_density(&material);
+        d.add_load(&|_| f, &mut load);
+        add(&mut load, &built.dirichlet_load);
+        let solution = solve_static(d, &load, &built.prescribed)?;
+        samples.push(Table1Timings {
+            integration,
+            assembly: solution.seconds_setup + solution.seconds_assemble,
+            solve: solution.seconds_solve,
+            dofs: 3 * d.num_nodes(),
+        });
+    }
+    let dofs = samples[0].dofs;
+    Ok(Table1Timings {
+        integration: median(samples.iter().map(|s| s.integration).collect()),
+        assembly: median(samples.iter().map(|s| s.assembly).collect()),
+        solve: median(samples.iter().map(|s| s.solve).collect()),
+        dofs,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn richardson_recovers_the_limit_of_an_exact_power_law() {
+        // u(h) = 3 + 2 h^1.422: two levels determine the limit exactly.
+        let p = 2.0 * CANTILEVER_LAMBDA;
+        let u = |h: Real| 3.0 + 2.0 * h.powf(p);
+        assert!((richardson(u(0.25), u(0.125), 2.0, p) - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn csv_round_trips_with_empty_cells() {
+        let row = Row {
+            problem: "mms-sin111".into(),
+            backend: "voxel".into(),
+            variant: "trilinear".into(),
+            n: 4,
+            dofs: 375,
+            elements: 64,
+            l2_rel_error: Some(0.125),
+            repetitions: 3,
+            ..Default::default()
+        };
+        let text = format!("{CSV_HEADER}\n{}\n", row.to_csv());
+        assert_eq!(parse_csv(&text).unwrap(), vec![row]);
+        assert!(parse_csv("a,b\n").is_err());
+    }
+}
