@@ -26,6 +26,18 @@ pub struct FieldSample {
     pub gradient: Matrix3<Real>,
 }
 
+/// A coarse space for two-level preconditioners: every node of the discretization as a weighted
+/// combination of coarse nodes (the prolongation `P`, acting on each of the three components
+/// alike). Built once per epoch by backends that have a natural coarsening (voxels: cubes of 2h
+/// with trilinear interpolation).
+#[derive(Clone, Debug)]
+pub struct CoarseSpace {
+    /// Number of coarse 3-vector nodes.
+    pub num_nodes: usize,
+    /// Row `k` = fine node `k` as `Σ w_c · coarse_c`; the rows must span the rigid motions.
+    pub prolongation: Embedding,
+}
+
 /// How state maps across a topology change.
 #[derive(Clone, Debug, PartialEq)]
 pub enum DofRemap {
@@ -114,6 +126,16 @@ pub trait Discretization: Send + Sync {
     /// `X0`: the DOF vector whose field is the identity map `x ↦ x`.
     fn rest_dofs(&self) -> &[Real];
 
+    /// `x += T(t)`, the DOFs of the constant field `t` (a translation). The default adds `t` to
+    /// every node, right for nodal bases (which sum to one); non-nodal bases (DG) override it.
+    fn add_translation(&self, t: &Vector3<Real>, x: &mut [Real]) {
+        for p in x.chunks_exact_mut(3) {
+            for a in 0..3 {
+                p[a] += t[a];
+            }
+        }
+    }
+
     /// Bumped at every topology change.
     fn epoch(&self) -> u64;
 
@@ -155,12 +177,35 @@ pub trait Discretization: Send + Sync {
     /// `ρ g`), integrated with a rule exact for the backend's shape functions times a quadratic.
     fn add_load(&self, force_density: &dyn Fn(&Point3<Real>) -> Vector3<Real>, out: &mut [Real]);
 
-    /// Embeds rest-space points: one row of (node, weight) pairs per point.
+    /// `out += ∫ ρ g N_k dV`: the gravity load. The default, `M g` per node, is exact for nodal
+    /// bases with a lumped mass whose rows sum to the consistent mass; backends whose DOFs are not
+    /// nodal values (DG) override it.
+    fn add_gravity_load(&self, gravity: &Vector3<Real>, out: &mut [Real]) {
+        for (f, m) in out.chunks_exact_mut(3).zip(self.mass().diagonal().chunks_exact(3)) {
+            for a in 0..3 {
+                f[a] += m[a] * gravity[a];
+            }
+        }
+    }
+
+    /// Embeds rest-space points: one row of (node, weight) pairs per point. Exact evaluation of the
+    /// discrete field (probes, pins).
     fn embed(&self, points: &[Point3<Real>]) -> Result<Embedding, EmbedError>;
+
+    /// Embeds surface points for rendering and contact. Defaults to [`Discretization::embed`];
+    /// a discontinuous backend returns a smooth (e.g. MLS) embedding instead.
+    fn embed_surface(&self, points: &[Point3<Real>]) -> Result<Embedding, EmbedError> {
+        self.embed(points)
+    }
 
     /// Visits the displacement field `u = x − X0` and its gradient at the quadrature points of a
     /// rule of at least `min_degree` exactness per element (for error norms).
     fn visit_field(&self, displacement: &[Real], min_degree: usize, visit: &mut dyn FnMut(&FieldSample));
+
+    /// A coarse space for the two-level CG preconditioner, if the backend has one.
+    fn coarse_space(&self) -> Option<CoarseSpace> {
+        None
+    }
 
     /// Cutting, if supported.
     fn as_cuttable(&mut self) -> Option<&mut dyn Cuttable> {

@@ -1,0 +1,811 @@
+//! `DgMesh`: the discontinuous Galerkin discretization of kaufmann2008 on a polyhedral mesh — exact
+//! element and face integrals, BZ or IP fluxes, weak Dirichlet data, penalty doubling until the
+//! stiffness is positive definite, corotated face blocks. Formulas: docs/math/dg.md.
+
+use crate::basis::{add, basis_size, exponents, index, shifted_monomial, ElementBasis};
+use crate::quadrature::{polygon_rule, polyhedron_rule};
+use cleave_core::rotation::extract_rotation;
+use cleave_core::{
+    AssemblyPattern, BlockRanks, BlockSet, BlockSetBuilder, BlockSetError, Discretization, EmbedError, Embedding, FieldSample, Mass,
+    Material, Matrix3, Point3, Real, RotationStats, Vector3,
+};
+use cleave_geometry::{element_moments, element_volume_centroid, face_area_normal_centroid, face_moments, Frame, GeometryError, PolyhedralMesh};
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+
+/// The numerical flux on interior faces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Flux {
+    /// Babuška–Zlámal: penalty only. Stable for any η > 0, not consistent (docs/math/dg.md §4).
+    BabuskaZlamal,
+    /// Symmetric interior penalty: consistency, symmetry and penalty terms.
+    InteriorPenalty,
+}
+
+/// Construction options.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DgOptions {
+    /// Polynomial degree of the basis: 1 (4 functions per element) or 2 (10).
+    pub degree: usize,
+    /// Interior-face flux.
+    pub flux: Flux,
+    /// Initial global penalty η (dimensionless; the face penalty is `η E area (1/vol⁻ + 1/vol⁺)`).
+    pub penalty: Real,
+    /// How often η may be doubled while the stiffness is not positive definite.
+    pub max_doublings: u32,
+}
+
+impl Default for DgOptions {
+    fn default() -> Self {
+        Self { degree: 1, flux: Flux::InteriorPenalty, penalty: 1.0, max_doublings: 24 }
+    }
+}
+
+/// Weakly imposed Dirichlet data: boundary faces whose centroid satisfies `on_boundary` get
+/// `u⁻ := g` (kaufmann2008 §5).
+pub struct WeakDirichlet<'a> {
+    /// Selects Dirichlet faces by their centroid (rest position).
+    pub on_boundary: &'a (dyn Fn(&Point3<Real>) -> bool + Sync),
+    /// The prescribed displacement `g` at a rest position.
+    pub data: &'a (dyn Fn(&Point3<Real>) -> Vector3<Real> + Sync),
+}
+
+/// Why a DG mesh could not be built.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum DgError {
+    /// The polyhedral mesh is invalid.
+    #[error("invalid polyhedral mesh: {0}")]
+    Mesh(#[from] GeometryError),
+    /// Unsupported degree.
+    #[error("polynomial degree {0} is not supported (use 1 or 2)")]
+    Degree(usize),
+    /// Non-positive or non-finite penalty.
+    #[error("penalty η = {0} must be positive and finite")]
+    Penalty(Real),
+    /// An element whose Gram matrix is singular.
+    #[error("element {element} is degenerate (volume {volume:e} m³): its basis cannot be orthonormalized")]
+    DegenerateElement {
+        /// element index
+        element: usize,
+        /// its volume
+        volume: Real,
+    },
+    /// The penalty doubling did not reach a positive definite stiffness.
+    #[error("the stiffness is not positive definite even with η = {penalty} after {doublings} doublings")]
+    NotPositiveDefinite {
+        /// the last η tried
+        penalty: Real,
+        /// doublings done
+        doublings: u32,
+    },
+    /// A block the backend built is malformed (a bug, reported instead of panicking).
+    #[error("internal block error: {0}")]
+    Blocks(#[from] BlockSetError),
+}
+
+/// Face matrices before the penalty is chosen.
+struct FaceTerms {
+    /// Nodes of the block (K⁻'s basis then K⁺'s, or K's alone on a Dirichlet face).
+    nodes: Vec<u32>,
+    /// Symmetric consistency parts warped by an element's frame: (matrix, frame element).
+    warped: Vec<(DMatrix<Real>, u32)>,
+    /// Penalty matrix for η = 1 (unwarped).
+    unit_penalty: DMatrix<Real>,
+}
+
+/// The DG discretization of one elastic body.
+pub struct DgMesh {
+    name: String,
+    material: Material,
+    options: DgOptions,
+    mesh: PolyhedralMesh,
+    exps: Vec<[u32; 3]>,
+    bases: Vec<ElementBasis>,
+    rest: Vec<Real>,
+    mass: Mass,
+    blocks: BlockSet,
+    penalty: Real,
+    doublings: u32,
+    dirichlet_load: Vec<Real>,
+    /// Per element and basis function: `g_i` with `F = Σ_i d_i ⊗ g_i` the gradient at the centroid.
+    rotation_gradients: Vec<Vector3<Real>>,
+    has_dirichlet: bool,
+    /// Per element: (face index, reversed) of its outward faces.
+    element_faces: Vec<Vec<(u32, bool)>>,
+}
+
+impl std::fmt::Debug for DgMesh {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DgMesh").field("name", &self.name).field("elements", &self.mesh.num_elements).field("penalty", &self.penalty).finish()
+    }
+}
+
+fn lame_tensor(material: &Material, n: &Vector3<Real>) -> [[[Real; 3]; 3]; 3] {
+    // T[a][b][d] with (σ(e_b ⊗ ∇φ) n)_a = Σ_d T[a][b][d] ∂_d φ (docs/math/dg.md §3).
+    let (lambda, mu) = material.lame();
+    let mut t = [[[0.0; 3]; 3]; 3];
+    for a in 0..3 {
+        for b in 0..3 {
+            for d in 0..3 {
+                let delta = |i: usize, j: usize| if i == j { 1.0 } else { 0.0 };
+                t[a][b][d] = lambda * n[a] * delta(b, d) + mu * (delta(a, b) * n[d] + n[b] * delta(a, d));
+            }
+        }
+    }
+    t
+}
+
+impl DgMesh {
+    /// Builds the discretization: bases, element stiffness, face terms, weak Dirichlet data, and
+    /// the penalty doubling (docs/math/dg.md §5).
+    pub fn new(mesh: PolyhedralMesh, material: Material, options: DgOptions, dirichlet: Option<&WeakDirichlet<'_>>) -> Result<Self, DgError> {
+        if !(1..=2).contains(&options.degree) {
+            return Err(DgError::Degree(options.degree));
+        }
+        if !(options.penalty > 0.0 && options.penalty.is_finite()) {
+            return Err(DgError::Penalty(options.penalty));
+        }
+        mesh.validate(1e-8)?;
+        let degree = options.degree;
+        let exps = exponents(degree);
+        let nb = exps.len();
+        debug_assert_eq!(nb, basis_size(degree));
+        let element_faces: Vec<Vec<(u32, bool)>> =
+            mesh.element_faces().into_iter().map(|list| list.into_iter().map(|f| (f.face as u32, f.reversed)).collect()).collect();
+
+        // Bases from exact moments (divergence theorem), in parallel over elements.
+        let bases: Vec<Result<ElementBasis, DgError>> = (0..mesh.num_elements)
+            .into_par_iter()
+            .map(|e| {
+                let (volume, centroid) = element_volume_centroid(&mesh, e);
+                let scale = element_faces[e]
+                    .iter()
+                    .flat_map(|&(f, _)| mesh.faces[f as usize].polygon.iter())
+                    .map(|&v| (mesh.vertices[v as usize] - centroid).norm())
+                    .fold(0.0, Real::max);
+                let frame = Frame { center: centroid, scale };
+                let mut moments = Vec::new();
+                element_moments(&mesh, e, &frame, 2 * degree, &mut moments);
+                ElementBasis::new(frame, degree, &moments).ok_or(DgError::DegenerateElement { element: e, volume })
+            })
+            .collect();
+        let bases: Vec<ElementBasis> = bases.into_iter().collect::<Result<_, _>>()?;
+
+        let num_nodes = mesh.num_elements * nb;
+        let mut rest = vec![0.0; 3 * num_nodes];
+        let mut rotation_gradients = vec![Vector3::zeros(); num_nodes];
+        for (e, basis) in bases.iter().enumerate() {
+            // Identity field in monomials: c_0 = centroid, c_{x,y,z} = s e_{x,y,z}; d = Lᵀ c with
+            // L = A⁻¹ (docs/math/dg.md §2).
+            let l = basis.a.clone().try_inverse().expect("A = L⁻¹ is invertible");
+            let mut c = vec![Vector3::zeros(); nb];
+            c[0] = basis.frame.center.coords;
+            for a in 0..3 {
+                let mut e_a = Vector3::zeros();
+                e_a[a] = basis.frame.scale;
+                c[index(unit(a))] = e_a;
+            }
+            for i in 0..nb {
+                let mut d = Vector3::zeros();
+                for (alpha, c_alpha) in c.iter().enumerate() {
+                    d += c_alpha * l[(alpha, i)];
+                }
+                rest[3 * (e * nb + i)..3 * (e * nb + i) + 3].copy_from_slice(d.as_slice());
+                // F e_a = c_{1+a} / s = Σ_i d_i A_{i,1+a} / s.
+                rotation_gradients[e * nb + i] = Vector3::from_fn(|a, _| basis.a[(i, index(unit(a)))] / basis.frame.scale);
+            }
+        }
+
+        // Consistent mass of an orthonormal basis: ρ I.
+        let mass = Mass::Lumped(vec![material.density; 3 * num_nodes]);
+
+        let element_stiffness: Vec<DMatrix<Real>> = (0..mesh.num_elements)
+            .into_par_iter()
+            .map(|e| element_stiffness(&mesh, e, &bases[e], &exps, &material))
+            .collect();
+
+        let face_terms: Vec<Option<FaceTerms>> = (0..mesh.faces.len())
+            .into_par_iter()
+            .map(|f| face_terms(&mesh, f, &bases, &exps, &material, options.flux, dirichlet))
+            .collect();
+
+        let has_dirichlet = face_terms.iter().flatten().any(|t| t.nodes.len() == nb);
+
+        let name = format!(
+            "dg-{}-{}",
+            match options.flux {
+                Flux::BabuskaZlamal => "bz",
+                Flux::InteriorPenalty => "ip",
+            },
+            degree
+        );
+        let mut this = Self {
+            name,
+            material,
+            options,
+            mesh,
+            exps,
+            bases,
+            rest,
+            mass,
+            blocks: BlockSetBuilder::new().finish(num_nodes)?,
+            penalty: options.penalty,
+            doublings: 0,
+            dirichlet_load: Vec::new(),
+            rotation_gradients,
+            has_dirichlet,
+            element_faces,
+        };
+        // The penalty doubling; the Dirichlet load depends on η, so it is built with the final η.
+        loop {
+            this.blocks = build_blocks(num_nodes, &element_stiffness, &face_terms, this.penalty)?;
+            if this.stiffness_is_positive_definite() {
+                break;
+            }
+            if this.doublings >= options.max_doublings {
+                return Err(DgError::NotPositiveDefinite { penalty: this.penalty, doublings: this.doublings });
+            }
+            this.penalty *= 2.0;
+            this.doublings += 1;
+        }
+        let mut dirichlet_load = vec![0.0; 3 * num_nodes];
+        if let Some(dirichlet) = dirichlet {
+            let scaled = WeakDirichletScaled { inner: dirichlet, penalty: this.penalty };
+            add_dirichlet_load(&this.mesh, &this.bases, &this.exps, &this.material, this.options.flux, &scaled, &mut dirichlet_load);
+        }
+        this.dirichlet_load = dirichlet_load;
+        Ok(this)
+    }
+
+    /// The global penalty η the doubling reached.
+    pub fn penalty(&self) -> Real {
+        self.penalty
+    }
+
+    /// How many times η was doubled.
+    pub fn penalty_doublings(&self) -> u32 {
+        self.doublings
+    }
+
+    /// The load of the weak Dirichlet data (add it to the external force).
+    pub fn dirichlet_load(&self) -> &[Real] {
+        &self.dirichlet_load
+    }
+
+    /// The polyhedral mesh.
+    pub fn polyhedral_mesh(&self) -> &PolyhedralMesh {
+        &self.mesh
+    }
+
+    /// Number of elements.
+    pub fn num_elements(&self) -> usize {
+        self.mesh.num_elements
+    }
+
+    /// Basis functions per element.
+    pub fn basis_size(&self) -> usize {
+        self.exps.len()
+    }
+
+    /// The material.
+    pub fn material(&self) -> &Material {
+        &self.material
+    }
+
+    /// The options (with the initial penalty).
+    pub fn options(&self) -> &DgOptions {
+        &self.options
+    }
+
+    /// Values and gradients of element `e`'s basis at `p` (buffers of `basis_size()`).
+    pub fn evaluate_basis(&self, e: usize, p: &Point3<Real>, values: &mut [Real], gradients: &mut [Vector3<Real>]) {
+        self.bases[e].evaluate(&self.exps, p, values, gradients);
+    }
+
+    /// Positive definiteness of `K` (free bodies: of `K + s M` with `s` a 1e-8 fraction of the
+    /// largest stiffness-to-mass ratio, which lifts the six rigid modes but not a negative
+    /// eigenvalue of an insufficient penalty, whose size is that of the stiffness itself).
+    fn stiffness_is_positive_definite(&self) -> bool {
+        use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+        use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+        use faer::Side;
+        let pattern = AssemblyPattern::from_groups(self.num_nodes(), self.blocks.node_groups());
+        let ranks = BlockRanks::new(&self.blocks, &pattern);
+        let mut values = vec![0.0; pattern.nnz()];
+        let identity = vec![Matrix3::identity(); self.num_frames()];
+        self.blocks.add_to_matrix(&identity, 1.0, &pattern, &ranks, &mut values);
+        if !self.has_dirichlet {
+            let mut largest: Real = 0.0;
+            for col in 0..pattern.dim() {
+                for p in pattern.col_ptr()[col]..pattern.col_ptr()[col + 1] {
+                    if pattern.row_idx()[p] == col {
+                        largest = largest.max(values[p]);
+                    }
+                }
+            }
+            let shift = 1e-8 * largest;
+            for col in 0..pattern.dim() {
+                for p in pattern.col_ptr()[col]..pattern.col_ptr()[col + 1] {
+                    if pattern.row_idx()[p] == col {
+                        values[p] += shift;
+                    }
+                }
+            }
+        }
+        let dim = pattern.dim();
+        let symbolic = SymbolicSparseColMat::new_checked(dim, dim, pattern.col_ptr().to_vec(), None, pattern.row_idx().to_vec());
+        let matrix = SparseColMat::new(symbolic, values);
+        let Ok(symbolic_llt) = SymbolicLlt::try_new(matrix.symbolic(), Side::Lower) else {
+            return false;
+        };
+        Llt::try_new_with_symbolic(symbolic_llt, matrix.as_ref(), Side::Lower).is_ok()
+    }
+
+    /// Element `e`'s outward faces as point loops.
+    fn element_polygons(&self, e: usize) -> Vec<Vec<Point3<Real>>> {
+        self.element_faces[e]
+            .iter()
+            .map(|&(f, reversed)| {
+                let mut pts: Vec<Point3<Real>> = self.mesh.faces[f as usize].polygon.iter().map(|&v| self.mesh.vertices[v as usize]).collect();
+                if reversed {
+                    pts.reverse();
+                }
+                pts
+            })
+            .collect()
+    }
+
+    /// The element containing `p` (rest space), by a signed point-in-polyhedron test over the
+    /// element's faces (winding number), nearest element centroid first.
+    pub fn locate(&self, p: &Point3<Real>) -> Option<usize> {
+        let mut order: Vec<(Real, usize)> = self.bases.iter().enumerate().map(|(e, b)| ((b.frame.center - p).norm() / b.frame.scale, e)).collect();
+        order.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for &(distance, e) in order.iter().take(64) {
+            if distance > 1.0 + 1e-9 {
+                break;
+            }
+            if winding_number(&self.element_polygons(e), p) > 0.5 {
+                return Some(e);
+            }
+        }
+        None
+    }
+}
+
+fn unit(a: usize) -> [u32; 3] {
+    let mut e = [0; 3];
+    e[a] = 1;
+    e
+}
+
+/// Generalized winding number of closed outward polygon loops around `p` (fan triangles).
+fn winding_number(faces: &[Vec<Point3<Real>>], p: &Point3<Real>) -> Real {
+    let mut total = 0.0;
+    for face in faces {
+        for k in 1..face.len().saturating_sub(1) {
+            let (a, b, c) = (face[0] - p, face[k] - p, face[k + 1] - p);
+            let (la, lb, lc) = (a.norm(), b.norm(), c.norm());
+            if la < 1e-300 || lb < 1e-300 || lc < 1e-300 {
+                return 1.0;
+            }
+            let numerator = a.dot(&b.cross(&c));
+            let denominator = la * lb * lc + a.dot(&b) * lc + b.dot(&c) * la + c.dot(&a) * lb;
+            total += 2.0 * numerator.atan2(denominator);
+        }
+    }
+    total / (4.0 * std::f64::consts::PI)
+}
+
+/// Element stiffness `K_K[(i,a),(j,b)] = ∫ λ ∂_aψ_i ∂_bψ_j + μ (δ_ab ∇ψ_i·∇ψ_j + ∂_bψ_i ∂_aψ_j)`.
+fn element_stiffness(mesh: &PolyhedralMesh, e: usize, basis: &ElementBasis, exps: &[[u32; 3]], material: &Material) -> DMatrix<Real> {
+    let nb = exps.len();
+    let degree = exps.iter().map(|x| x[0] + x[1] + x[2]).max().unwrap_or(0) as usize;
+    let mut moments = Vec::new();
+    if degree >= 1 {
+        element_moments(mesh, e, &basis.frame, 2 * degree - 2, &mut moments);
+    }
+    let s2 = basis.frame.scale * basis.frame.scale;
+    // S_cd[α][β] = ∫ ∂_c m_α ∂_d m_β (physical derivatives).
+    let mut s = vec![DMatrix::<Real>::zeros(nb, nb); 9];
+    for (al, ea) in exps.iter().enumerate() {
+        for (be, eb) in exps.iter().enumerate() {
+            for c in 0..3 {
+                for d in 0..3 {
+                    if ea[c] == 0 || eb[d] == 0 {
+                        continue;
+                    }
+                    let mut sum = add(*ea, *eb);
+                    sum[c] -= 1;
+                    sum[d] -= 1;
+                    s[3 * c + d][(al, be)] = (ea[c] * eb[d]) as Real / s2 * moments[index(sum)];
+                }
+            }
+        }
+    }
+    // Into the orthonormal basis: A S Aᵀ.
+    let g: Vec<DMatrix<Real>> = s.iter().map(|m| &basis.a * m * basis.a.transpose()).collect();
+    let (lambda, mu) = material.lame();
+    let mut k = DMatrix::zeros(3 * nb, 3 * nb);
+    for i in 0..nb {
+        for j in 0..nb {
+            let dot = g[0][(i, j)] + g[4][(i, j)] + g[8][(i, j)];
+            for a in 0..3 {
+                for b in 0..3 {
+                    let mut v = lambda * g[3 * a + b][(i, j)] + mu * g[3 * b + a][(i, j)];
+                    if a == b {
+                        v += mu * dot;
+                    }
+                    k[(3 * i + a, 3 * j + b)] = v;
+                }
+            }
+        }
+    }
+    symmetrize(&mut k);
+    k
+}
+
+fn symmetrize(k: &mut DMatrix<Real>) {
+    let t = k.transpose();
+    *k += t;
+    *k *= 0.5;
+}
+
+/// Face integrals in the frame of `common`: `P[s][t] = ∫ ψ^s ψ^tᵀ` and `Q_d[s][t] = ∫ ψ^s ∂_dψ^tᵀ`
+/// for the given sides (docs/math/dg.md §3).
+struct FaceIntegrals {
+    p: Vec<Vec<DMatrix<Real>>>,
+    q: Vec<Vec<[DMatrix<Real>; 3]>>,
+}
+
+fn face_integrals(mesh: &PolyhedralMesh, f: usize, sides: &[&ElementBasis], exps: &[[u32; 3]]) -> FaceIntegrals {
+    let nb = exps.len();
+    let degree = exps.iter().map(|x| x[0] + x[1] + x[2]).max().unwrap_or(0) as usize;
+    let common = sides[0].frame;
+    let mut mom = Vec::new();
+    face_moments(mesh, f, &common, 2 * degree, &mut mom);
+    // B^s = A^s E^s: ψ^s_i = Σ_γ B^s_{iγ} ξ^γ in the common frame.
+    let b: Vec<DMatrix<Real>> = sides
+        .iter()
+        .map(|side| {
+            let o = (common.center - side.frame.center) / side.frame.scale;
+            let r = common.scale / side.frame.scale;
+            let mut e = DMatrix::zeros(nb, nb);
+            let mut row = vec![0.0; nb];
+            for (beta, eb) in exps.iter().enumerate() {
+                shifted_monomial(*eb, &o, r, degree, &mut row);
+                for g in 0..nb {
+                    e[(beta, g)] = row[g];
+                }
+            }
+            &side.a * e
+        })
+        .collect();
+    let m0 = DMatrix::from_fn(nb, nb, |g, d| mom[index(add(exps[g], exps[d]))]);
+    let md: [DMatrix<Real>; 3] = std::array::from_fn(|axis| {
+        DMatrix::from_fn(nb, nb, |g, d| {
+            if exps[d][axis] == 0 {
+                return 0.0;
+            }
+            let mut e = add(exps[g], exps[d]);
+            e[axis] -= 1;
+            exps[d][axis] as Real / common.scale * mom[index(e)]
+        })
+    });
+    let mut p = Vec::new();
+    let mut q = Vec::new();
+    for bs in &b {
+        let mut prow = Vec::new();
+        let mut qrow = Vec::new();
+        for bt in &b {
+            prow.push(bs * &m0 * bt.transpose());
+            qrow.push(std::array::from_fn(|axis| bs * &md[axis] * bt.transpose()));
+        }
+        p.push(prow);
+        q.push(qrow);
+    }
+    FaceIntegrals { p, q }
+}
+
+/// The terms of face `f`, `None` for free boundary faces.
+fn face_terms(
+    mesh: &PolyhedralMesh,
+    f: usize,
+    bases: &[ElementBasis],
+    exps: &[[u32; 3]],
+    material: &Material,
+    flux: Flux,
+    dirichlet: Option<&WeakDirichlet<'_>>,
+) -> Option<FaceTerms> {
+    let nb = exps.len();
+    let face = &mesh.faces[f];
+    let (area, normal, centroid) = face_area_normal_centroid(mesh, f);
+    let t = lame_tensor(material, &normal);
+    match face.outer {
+        Some(outer) => {
+            let (em, ep) = (face.inner as usize, outer as usize);
+            let sides = [&bases[em], &bases[ep]];
+            let integrals = face_integrals(mesh, f, &sides, exps);
+            let sign = [1.0, -1.0];
+            let eta_f = material.youngs_modulus * area * (1.0 / bases[em].volume + 1.0 / bases[ep].volume);
+            let n = 2 * nb;
+            let mut unit_penalty = DMatrix::zeros(3 * n, 3 * n);
+            for s in 0..2 {
+                for tt in 0..2 {
+                    for i in 0..nb {
+                        for j in 0..nb {
+                            let v = eta_f * sign[s] * sign[tt] * integrals.p[s][tt][(i, j)];
+                            for a in 0..3 {
+                                unit_penalty[(3 * (s * nb + i) + a, 3 * (tt * nb + j) + a)] = v;
+                            }
+                        }
+                    }
+                }
+            }
+            symmetrize(&mut unit_penalty);
+            let mut warped = Vec::new();
+            if flux == Flux::InteriorPenalty {
+                for (tt, frame) in [(0, em), (1, ep)] {
+                    // K1 restricted to trial side tt: −½ sgn_s ∫ ψ^s_i Σ_d T[a][b][d] ∂_dψ^t_j.
+                    let mut k = DMatrix::zeros(3 * n, 3 * n);
+                    for s in 0..2 {
+                        for i in 0..nb {
+                            for j in 0..nb {
+                                for a in 0..3 {
+                                    for b in 0..3 {
+                                        let mut v = 0.0;
+                                        for d in 0..3 {
+                                            v += t[a][b][d] * integrals.q[s][tt][d][(i, j)];
+                                        }
+                                        k[(3 * (s * nb + i) + a, 3 * (tt * nb + j) + b)] += -0.5 * sign[s] * v;
+                                    }
+                                }
+                            }
+                        }
+                    }
+                    let kt = k.transpose();
+                    k += kt;
+                    warped.push((k, frame as u32));
+                }
+            }
+            let nodes = (0..nb as u32).map(|i| em as u32 * nb as u32 + i).chain((0..nb as u32).map(|i| ep as u32 * nb as u32 + i)).collect();
+            Some(FaceTerms { nodes, warped, unit_penalty })
+        }
+        None => {
+            let dirichlet = dirichlet?;
+            if !(dirichlet.on_boundary)(&centroid) {
+                return None;
+            }
+            let e = face.inner as usize;
+            let integrals = face_integrals(mesh, f, &[&bases[e]], exps);
+            let eta_f = material.youngs_modulus * area / bases[e].volume;
+            let mut unit_penalty = DMatrix::zeros(3 * nb, 3 * nb);
+            for i in 0..nb {
+                for j in 0..nb {
+                    for a in 0..3 {
+                        unit_penalty[(3 * i + a, 3 * j + a)] = eta_f * integrals.p[0][0][(i, j)];
+                    }
+                }
+            }
+            symmetrize(&mut unit_penalty);
+            let mut warped = Vec::new();
+            if flux == Flux::InteriorPenalty {
+                // −∫ v·σ(u)n − ∫ u·σ(v)n, n outward from K.
+                let mut k = DMatrix::zeros(3 * nb, 3 * nb);
+                for i in 0..nb {
+                    for j in 0..nb {
+                        for a in 0..3 {
+                            for b in 0..3 {
+                                let mut v = 0.0;
+                                for d in 0..3 {
+                                    v += t[a][b][d] * integrals.q[0][0][d][(i, j)];
+                                }
+                                k[(3 * i + a, 3 * j + b)] -= v;
+                            }
+                        }
+                    }
+                }
+                let kt = k.transpose();
+                k += kt;
+                warped.push((k, e as u32));
+            }
+            let nodes = (0..nb as u32).map(|i| e as u32 * nb as u32 + i).collect();
+            Some(FaceTerms { nodes, warped, unit_penalty })
+        }
+    }
+}
+
+fn build_blocks(num_nodes: usize, element_stiffness: &[DMatrix<Real>], faces: &[Option<FaceTerms>], penalty: Real) -> Result<BlockSet, BlockSetError> {
+    let mut builder = BlockSetBuilder::new();
+    let nb = element_stiffness.first().map_or(0, |k| k.nrows() / 3);
+    for (e, k) in element_stiffness.iter().enumerate() {
+        let id = builder.add_rest_matrix(k.clone())?;
+        let nodes: Vec<u32> = (0..nb as u32).map(|i| e as u32 * nb as u32 + i).collect();
+        builder.push(&nodes, id, Some(e as u32));
+    }
+    for terms in faces.iter().flatten() {
+        for (k, frame) in &terms.warped {
+            let id = builder.add_rest_matrix(k.clone())?;
+            builder.push(&terms.nodes, id, Some(*frame));
+        }
+        let id = builder.add_rest_matrix(&terms.unit_penalty * penalty)?;
+        builder.push(&terms.nodes, id, None);
+    }
+    builder.finish(num_nodes)
+}
+
+struct WeakDirichletScaled<'a, 'b> {
+    inner: &'a WeakDirichlet<'b>,
+    penalty: Real,
+}
+
+/// `F_(i,a) += ∫_F η_f g_a ψ_i − g · σ(ψ_i e_a) n` over Dirichlet faces (IP; BZ keeps only the
+/// penalty part), with a degree-7 rule on the fan triangles.
+fn add_dirichlet_load(
+    mesh: &PolyhedralMesh,
+    bases: &[ElementBasis],
+    exps: &[[u32; 3]],
+    material: &Material,
+    flux: Flux,
+    dirichlet: &WeakDirichletScaled<'_, '_>,
+    out: &mut [Real],
+) {
+    let nb = exps.len();
+    let mut values = vec![0.0; nb];
+    let mut gradients = vec![Vector3::zeros(); nb];
+    for (f, face) in mesh.faces.iter().enumerate() {
+        if face.outer.is_some() {
+            continue;
+        }
+        let (area, normal, centroid) = face_area_normal_centroid(mesh, f);
+        if !(dirichlet.inner.on_boundary)(&centroid) {
+            continue;
+        }
+        let e = face.inner as usize;
+        let eta_f = dirichlet.penalty * material.youngs_modulus * area / bases[e].volume;
+        let t = lame_tensor(material, &normal);
+        let points: Vec<Point3<Real>> = face.polygon.iter().map(|&v| mesh.vertices[v as usize]).collect();
+        polygon_rule(&points, &normal, &mut |p, w| {
+            let g = (dirichlet.inner.data)(&p);
+            bases[e].evaluate(exps, &p, &mut values, &mut gradients);
+            for i in 0..nb {
+                for a in 0..3 {
+                    let mut v = eta_f * g[a] * values[i];
+                    if flux == Flux::InteriorPenalty {
+                        // g · σ(ψ_i e_a) n = Σ_b g_b Σ_d T[b][a][d] ∂_dψ_i
+                        for b in 0..3 {
+                            for d in 0..3 {
+                                v -= g[b] * t[b][a][d] * gradients[i][d];
+                            }
+                        }
+                    }
+                    out[3 * (e * nb + i) + a] += w * v;
+                }
+            }
+        });
+    }
+}
+
+impl Discretization for DgMesh {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn num_nodes(&self) -> usize {
+        self.mesh.num_elements * self.exps.len()
+    }
+
+    fn rest_dofs(&self) -> &[Real] {
+        &self.rest
+    }
+
+    fn epoch(&self) -> u64 {
+        0
+    }
+
+    fn mass(&self) -> &Mass {
+        &self.mass
+    }
+
+    fn num_frames(&self) -> usize {
+        self.mesh.num_elements
+    }
+
+    fn write_rotations(&self, x: &[Real], rotations: &mut [Matrix3<Real>]) -> RotationStats {
+        let nb = self.exps.len();
+        let inverted = rotations
+            .par_iter_mut()
+            .enumerate()
+            .map(|(e, r)| {
+                let mut f = Matrix3::zeros();
+                for i in 0..nb {
+                    let node = e * nb + i;
+                    let d = Vector3::new(x[3 * node], x[3 * node + 1], x[3 * node + 2]);
+                    f += d * self.rotation_gradients[node].transpose();
+                }
+                *r = extract_rotation(&f, r, 20);
+                usize::from(f.determinant() <= 0.0)
+            })
+            .sum();
+        RotationStats { inverted }
+    }
+
+    fn blocks(&self) -> &BlockSet {
+        &self.blocks
+    }
+
+    fn add_load(&self, force_density: &dyn Fn(&Point3<Real>) -> Vector3<Real>, out: &mut [Real]) {
+        let nb = self.exps.len();
+        let mut values = vec![0.0; nb];
+        let mut gradients = vec![Vector3::zeros(); nb];
+        for e in 0..self.mesh.num_elements {
+            let basis = &self.bases[e];
+            polyhedron_rule(self.element_polygons(e).into_iter(), &basis.frame.center, &mut |p, w| {
+                let f = force_density(&p);
+                basis.evaluate(&self.exps, &p, &mut values, &mut gradients);
+                for i in 0..nb {
+                    for a in 0..3 {
+                        out[3 * (e * nb + i) + a] += w * values[i] * f[a];
+                    }
+                }
+            });
+        }
+    }
+
+    fn add_translation(&self, t: &Vector3<Real>, x: &mut [Real]) {
+        // The constant 1 is m_0 = Σ_i L_{0i} ψ_i and L is lower triangular, so only ψ_0 carries it.
+        let nb = self.exps.len();
+        for (e, basis) in self.bases.iter().enumerate() {
+            let l00 = 1.0 / basis.a[(0, 0)];
+            for a in 0..3 {
+                x[3 * e * nb + a] += l00 * t[a];
+            }
+        }
+    }
+
+    fn add_gravity_load(&self, gravity: &Vector3<Real>, out: &mut [Real]) {
+        let rho = self.material.density;
+        self.add_load(&|_| gravity * rho, out);
+    }
+
+    fn embed(&self, points: &[Point3<Real>]) -> Result<Embedding, EmbedError> {
+        let nb = self.exps.len();
+        let mut embedding = Embedding::new();
+        let mut values = vec![0.0; nb];
+        let mut gradients = vec![Vector3::zeros(); nb];
+        let mut nodes = vec![0u32; nb];
+        for (index, p) in points.iter().enumerate() {
+            let e = self.locate(p).ok_or(EmbedError::Outside { index, x: p.x, y: p.y, z: p.z })?;
+            self.bases[e].evaluate(&self.exps, p, &mut values, &mut gradients);
+            for (i, n) in nodes.iter_mut().enumerate() {
+                *n = (e * nb + i) as u32;
+            }
+            embedding.push_row(&nodes, &values);
+        }
+        Ok(embedding)
+    }
+
+    fn embed_surface(&self, points: &[Point3<Real>]) -> Result<Embedding, EmbedError> {
+        crate::mls::embed_mls(self, points)
+    }
+
+    fn visit_field(&self, displacement: &[Real], _min_degree: usize, visit: &mut dyn FnMut(&FieldSample)) {
+        let nb = self.exps.len();
+        let mut values = vec![0.0; nb];
+        let mut gradients = vec![Vector3::zeros(); nb];
+        for e in 0..self.mesh.num_elements {
+            let basis = &self.bases[e];
+            polyhedron_rule(self.element_polygons(e).into_iter(), &basis.frame.center, &mut |p, w| {
+                basis.evaluate(&self.exps, &p, &mut values, &mut gradients);
+                let mut u = Vector3::zeros();
+                let mut grad = Matrix3::zeros();
+                for i in 0..nb {
+                    let node = e * nb + i;
+                    let d = Vector3::new(displacement[3 * node], displacement[3 * node + 1], displacement[3 * node + 2]);
+                    u += d * values[i];
+                    grad += d * gradients[i].transpose();
+                }
+                visit(&FieldSample { position: p, weight: w, displacement: u, gradient: grad });
+            });
+        }
+    }
+}
