@@ -1,10 +1,13 @@
 //! The error type of `cleave-geometry`: every failure names the offending value.
 
-/// Errors from loading, validating, querying and voxelizing triangle meshes.
+/// Errors from loading, validating, querying and voxelizing triangle meshes, and from
+/// validating and integrating over polyhedral meshes.
 ///
 /// Triangle indices are positions in [`TriangleMesh::triangles`](crate::TriangleMesh::triangles),
 /// vertex indices are 0-based positions in
-/// [`TriangleMesh::vertices`](crate::TriangleMesh::vertices).
+/// [`TriangleMesh::vertices`](crate::TriangleMesh::vertices) (or
+/// [`PolyhedralMesh::vertices`](crate::PolyhedralMesh::vertices)); face indices are positions
+/// in [`PolyhedralMesh::faces`](crate::PolyhedralMesh::faces).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum GeometryError {
@@ -137,5 +140,142 @@ pub enum GeometryError {
         cells: f64,
         /// The maximum allowed number of cells.
         limit: u64,
+    },
+    /// The polyhedral mesh has no elements.
+    #[error("the polyhedral mesh has no elements")]
+    NoElements,
+    /// A face index passed to a query does not exist.
+    #[error("face {face} does not exist: the mesh has {num_faces} faces")]
+    FaceOutOfRange {
+        /// The requested face.
+        face: usize,
+        /// Number of faces of the mesh.
+        num_faces: usize,
+    },
+    /// An element index passed to a query does not exist.
+    #[error("element {element} does not exist: the mesh has {num_elements} elements")]
+    ElementOutOfRange {
+        /// The requested element.
+        element: usize,
+        /// Number of elements of the mesh.
+        num_elements: usize,
+    },
+    /// A face polygon refers to a vertex that does not exist.
+    #[error("face {face} refers to vertex {index}, but the mesh has only {vertex_count} vertices")]
+    FaceVertexOutOfRange {
+        /// Index of the face.
+        face: usize,
+        /// The first out-of-range vertex index in its polygon.
+        index: u32,
+        /// Number of vertices of the mesh.
+        vertex_count: usize,
+    },
+    /// A face's `inner` or `outer` element index is not below `num_elements`.
+    #[error("face {face} refers to element {element}, but the mesh has only {num_elements} elements")]
+    FaceElementOutOfRange {
+        /// Index of the face.
+        face: usize,
+        /// The out-of-range element index (`inner` if it is bad, else `outer`).
+        element: u32,
+        /// Number of elements of the mesh.
+        num_elements: usize,
+    },
+    /// A face has the same element on both sides.
+    #[error("face {face} has element {element} on both sides")]
+    SelfAdjacentFace {
+        /// Index of the face.
+        face: usize,
+        /// The element named as both `inner` and `outer`.
+        element: u32,
+    },
+    /// A face has fewer than three distinct vertices, repeats a vertex, or has (numerically)
+    /// zero area.
+    #[error("face {face} (polygon {polygon:?}) is degenerate: {distinct_vertices} distinct vertices, area {area:e}")]
+    DegenerateFace {
+        /// Index of the face.
+        face: usize,
+        /// Its vertex indices.
+        polygon: Vec<u32>,
+        /// Number of distinct vertex indices in it.
+        distinct_vertices: usize,
+        /// Its area (Newell), 0 when it has fewer than three distinct vertices.
+        area: f64,
+    },
+    /// A face is not planar: some vertex lies farther from the Newell plane (through the
+    /// vertex mean) than `tolerance` times the face diameter.
+    #[error(
+        "face {face} is not planar: vertex {vertex} deviates from its Newell plane by {deviation:e} \
+         face diameters (tolerance {tolerance:e})"
+    )]
+    NonPlanarFace {
+        /// Index of the face.
+        face: usize,
+        /// The vertex (mesh index) farthest from the plane.
+        vertex: u32,
+        /// Its distance from the plane divided by the face diameter.
+        deviation: f64,
+        /// The tolerance it exceeds.
+        tolerance: f64,
+    },
+    /// An element boundary is open: the directed edge (a, b) of one of its outward faces is
+    /// not matched by the reverse edge (b, a) of another.
+    #[error("element {element} is not closed: edge ({a}, {b}) of face {face} has no reverse edge ({b}, {a})")]
+    OpenElementBoundary {
+        /// Index of the element.
+        element: usize,
+        /// Start vertex of the directed edge, in the element's outward orientation.
+        a: u32,
+        /// End vertex of the directed edge.
+        b: u32,
+        /// The face (mesh index) containing the edge.
+        face: usize,
+    },
+    /// Two outward faces of an element traverse the edge a → b in the same direction, so
+    /// the element boundary is inconsistently oriented.
+    #[error(
+        "element {element} is inconsistently oriented: directed edge ({a}, {b}) is used by both \
+         face {} and face {}",
+        faces.0,
+        faces.1
+    )]
+    InconsistentElementOrientation {
+        /// Index of the element.
+        element: usize,
+        /// Start vertex of the directed edge.
+        a: u32,
+        /// End vertex of the directed edge.
+        b: u32,
+        /// The two faces (mesh indices), in the element's face order.
+        faces: (usize, usize),
+    },
+    /// An element has zero, negative or NaN volume (e.g. all its faces point inward).
+    #[error("element {element} has non-positive volume {volume:e}")]
+    NonPositiveVolume {
+        /// Index of the element.
+        element: usize,
+        /// Its signed volume.
+        volume: f64,
+    },
+    /// A tolerance is negative or not a number.
+    #[error("invalid tolerance {tolerance}: must be non-negative")]
+    InvalidTolerance {
+        /// The rejected tolerance.
+        tolerance: f64,
+    },
+    /// A moment frame has a non-finite centre or a scale that is not positive and finite.
+    #[error("invalid frame: center {center:?}, scale {scale} (the scale must be positive and finite)")]
+    InvalidFrame {
+        /// The frame centre.
+        center: [f64; 3],
+        /// The frame scale.
+        scale: f64,
+    },
+    /// The requested moment degree exceeds the supported maximum.
+    #[error("moment degree {degree} exceeds the supported maximum {limit}")]
+    MomentDegreeTooHigh {
+        /// The requested degree.
+        degree: usize,
+        /// The maximum, [`MAX_MOMENT_DEGREE`](crate::MAX_MOMENT_DEGREE).
+        limit: usize,
     },
 }

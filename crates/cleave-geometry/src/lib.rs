@@ -11,7 +11,10 @@
 //! - [`voxelize`] producing a [`VoxelGrid`] (module `voxelize`), following Müller et al.
 //!   2004, §2.1.
 //! - [`PolyhedralMesh`] (module `polyhedral`): polyhedral elements with shared planar
-//!   polygon faces, for the DG backend (Kaufmann et al. 2008).
+//!   polygon faces, for the DG backend (Kaufmann et al. 2008), checked by
+//!   [`PolyhedralMesh::validate`] (module `poly_validate`) returning [`PolyMeshStats`].
+//! - [`element_moments`] / [`face_moments`] (module `moments`): exact monomial integrals over
+//!   (non-convex) polyhedra and polygons by the divergence theorem.
 //!
 //! The library performs no file or terminal I/O and reports bad input as
 //! [`GeometryError`] values naming the offending triangle, edge, vertex or OBJ line.
@@ -19,8 +22,10 @@
 mod error;
 mod inside;
 mod mesh;
+mod moments;
 mod obj;
 mod overlap;
+mod poly_validate;
 mod polyhedral;
 mod validate;
 mod voxelize;
@@ -28,7 +33,13 @@ mod voxelize;
 pub use error::GeometryError;
 pub use inside::InsideTester;
 pub use mesh::TriangleMesh;
+pub use moments::{
+    Frame, MAX_MOMENT_DEGREE, element_frame, element_moments, element_moments_from_faces, element_volume_centroid,
+    face_area_normal_centroid, face_moments, monomial_exponents, monomial_index, num_monomials, try_element_moments,
+    try_element_moments_from_faces, try_face_moments,
+};
 pub use overlap::triangle_aabb_overlap;
+pub use poly_validate::PolyMeshStats;
 pub use polyhedral::{ElementFace, PolyFace, PolyhedralMesh};
 pub use validate::{DEGENERATE_RATIO, MeshStats};
 pub use voxelize::{CELL_TOLERANCE, MAX_GRID_CELLS, VoxelGrid, voxelize};
