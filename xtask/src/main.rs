@@ -1,13 +1,18 @@
-//! `cargo xtask`: cleave's command line. Thin by design: argument parsing, progress, tables;
-//! everything else lives in the library crates.
+//! `cargo xtask`: cleave's command line. Thin by design: argument parsing, progress, tables,
+//! plots and files; everything else lives in the library crates.
+
+mod compare;
+mod machine;
+mod plots;
+mod stability;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use cleave_scene::{load_scene, Simulation};
+use cleave_scene::{Simulation, load_scene};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 #[derive(Parser)]
@@ -34,12 +39,82 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// Refine every registered backend on the benchmark problems under a time budget; write
+    /// compare.csv, compare.md and plots.
+    Compare {
+        /// Small levels only (CI); writes to target/ci unless --out is given.
+        #[arg(long)]
+        quick: bool,
+        /// mms, cantilever, dynamic or all.
+        #[arg(long, default_value = "all")]
+        problem: String,
+        /// Backends to run (default: all registered).
+        #[arg(long, num_args = 1..)]
+        backend: Vec<String>,
+        /// Wall-clock seconds per (backend, variant, problem) study.
+        #[arg(long, default_value_t = 120.0)]
+        budget: f64,
+        /// Output directory (default docs/results, or target/ci with --quick).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// The stability grid (E × ν × h and extreme starts) for every registered backend; write
+    /// stability.md and stability.csv.
+    Stability {
+        /// 20 steps per cell instead of 600; writes to target/ci unless --out is given.
+        #[arg(long)]
+        quick: bool,
+        /// Backends to run (default: all registered).
+        #[arg(long, num_args = 1..)]
+        backend: Vec<String>,
+        /// Output directory (default docs/results, or target/ci with --quick).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+    },
+}
+
+/// The command as typed (for the reports), without the binary path.
+fn typed_command() -> String {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    format!("cargo xtask {}", args.join(" "))
+}
+
+fn default_out(quick: bool, out: Option<PathBuf>) -> PathBuf {
+    out.unwrap_or_else(|| PathBuf::from(if quick { "target/ci" } else { "docs/results" }))
 }
 
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Run { scene, out, steps, quiet } => run(scene, out, steps, quiet),
+        Command::Compare { quick, problem, backend, budget, out, quiet } => {
+            if !(budget.is_finite() && budget > 0.0) {
+                Err(anyhow::anyhow!("--budget must be a positive number of seconds, got {budget}"))
+            } else {
+                compare::compare(compare::CompareArgs {
+                    quick,
+                    problem,
+                    backends: backend,
+                    budget,
+                    out: default_out(quick, out),
+                    command: typed_command(),
+                    quiet,
+                })
+            }
+        }
+        Command::Stability { quick, backend, out, quiet } => stability::stability(stability::StabilityArgs {
+            quick,
+            backends: backend,
+            out: default_out(quick, out),
+            command: typed_command(),
+            quiet,
+        }),
     };
     if let Err(error) = result {
         // One line: the cause chain joined, so scripts and humans see file:line:column first.
@@ -115,7 +190,9 @@ fn run(scene_path: PathBuf, out: Option<PathBuf>, steps: Option<u64>, quiet: boo
     simulation.finish(failure.as_deref())?;
 
     let per_step = |x: f64| if done > 0 { 1e3 * x / done as f64 } else { 0.0 };
-    println!("| scene | backend | elements | DOFs | steps | wall [s] | steps/s | ms/step rot | asm | solve | rest | iterations/step | max inverted |");
+    println!(
+        "| scene | backend | elements | DOFs | steps | wall [s] | steps/s | ms/step rot | asm | solve | rest | iterations/step | max inverted |"
+    );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     println!(
         "| {} | {} | {} | {} | {}/{} | {:.2} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {:.1} | {} |",

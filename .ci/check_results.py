@@ -1,0 +1,60 @@
+#!/usr/bin/env python3
+"""Checks that the CSV outputs of `cargo xtask compare --quick` and `cargo xtask stability --quick`
+parse: the stated header, numbers (or empty cells) where numbers belong, every quick study present,
+and the whole stability grid with a verdict in every cell. Usage: check_results.py DIR."""
+import csv
+import math
+import sys
+from pathlib import Path
+
+COMPARE_HEADER = ("problem,backend,variant,n,dofs,elements,nnz,l2_rel_error,h1_rel_error,tip_uz_avg,"
+                  "tip_uz_point,strain_energy,seconds_setup,seconds_assemble,seconds_solve,seconds_total,"
+                  "peak_rss_mb").split(",")
+STABILITY_CELLS = 4 * 5 * 3 + 3
+
+
+def number(text, column, line):
+    if text == "":
+        return None
+    value = float(text)
+    if not math.isfinite(value):
+        raise SystemExit(f"line {line}: column {column} is not finite: {text!r}")
+    return value
+
+
+def main(directory):
+    directory = Path(directory)
+    with open(directory / "compare.csv", newline="") as f:
+        reader = csv.DictReader(f)
+        if reader.fieldnames[: len(COMPARE_HEADER)] != COMPARE_HEADER:
+            raise SystemExit(f"compare.csv header {reader.fieldnames} does not start with {COMPARE_HEADER}")
+        rows = list(reader)
+    for i, row in enumerate(rows, start=2):
+        for column in COMPARE_HEADER[3:]:
+            number(row[column], column, i)
+        if int(row["dofs"]) <= 0:
+            raise SystemExit(f"compare.csv line {i}: no DOFs")
+    problems = {r["problem"] for r in rows if r["backend"] == "voxel"}
+    expected = {"mms-sin111", "mms-cos123", "cantilever", "dynamic"}
+    if problems != expected:
+        raise SystemExit(f"voxel rows cover {sorted(problems)}, expected {sorted(expected)}")
+    l2 = [float(r["l2_rel_error"]) for r in rows if r["problem"] == "mms-sin111" and r["backend"] == "voxel"]
+    if not all(a > b for a, b in zip(l2, l2[1:])):
+        raise SystemExit(f"voxel L2 errors do not decrease: {l2}")
+
+    with open(directory / "stability.csv", newline="") as f:
+        cells = list(csv.DictReader(f))
+    methods = {(c["backend"], c["variant"]) for c in cells}
+    for method in methods:
+        own = [c for c in cells if (c["backend"], c["variant"]) == method]
+        if len(own) != STABILITY_CELLS:
+            raise SystemExit(f"stability.csv has {len(own)} cells for {method}, expected {STABILITY_CELLS}")
+        for c in own:
+            if c["passed"] not in ("true", "false") or not c["verdict"]:
+                raise SystemExit(f"stability.csv: malformed cell {c}")
+            number(c["max_energy_factor"], "max_energy_factor", 0)
+    print(f"results parse: {len(rows)} compare rows, {len(cells)} stability cells for {len(methods)} method(s)")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1] if len(sys.argv) > 1 else "target/ci")

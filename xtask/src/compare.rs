@@ -1,0 +1,467 @@
+//! `cargo xtask compare`: runs the budgeted refinement studies of every registered backend
+//! (`cleave_registry`), appends each finished run to the CSV at once, and writes the Markdown
+//! report and the plots. The studies themselves live in `cleave_testkit::compare`.
+
+use crate::machine::{RssProbe, machine_line};
+use crate::plots;
+use anyhow::{Context, Result, bail};
+use cleave_registry::backends;
+use cleave_testkit::compare::{
+    CSV_HEADER, CompareBackend, DYNAMIC_STEPS, KAUFMANN2008_TABLE1, Problem, Row, StudyObserver, StudyPlan,
+    Table1Timings, TipReference, cantilever_reference, observed_rates, parse_csv, run_study, table1_timings,
+};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::fmt::Write as _;
+use std::fs::{self, File, OpenOptions};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Parsed arguments of `cargo xtask compare`.
+pub struct CompareArgs {
+    /// Small levels only (CI).
+    pub quick: bool,
+    /// "mms", "cantilever", "dynamic" or "all".
+    pub problem: String,
+    /// Backends to run (empty = all registered).
+    pub backends: Vec<String>,
+    /// Seconds per (method, problem) study.
+    pub budget: f64,
+    /// Output directory.
+    pub out: PathBuf,
+    /// The command as typed, for the report.
+    pub command: String,
+    /// No progress bar.
+    pub quiet: bool,
+}
+
+fn selected_problems(name: &str) -> Result<Vec<Problem>> {
+    Ok(match name {
+        "all" => Problem::ALL.to_vec(),
+        "mms" => vec![Problem::MmsSin111, Problem::MmsCos123],
+        "cantilever" => vec![Problem::Cantilever],
+        "dynamic" => vec![Problem::Dynamic],
+        other => bail!("unknown problem {other:?}: expected mms, cantilever, dynamic or all"),
+    })
+}
+
+/// The registered backends named in `names` (all if empty); unknown names are an error that
+/// lists the registered ones.
+pub fn selected_backends(names: &[String]) -> Result<Vec<Box<dyn CompareBackend>>> {
+    let all = backends();
+    let registered: Vec<String> = all.iter().map(|b| b.name().to_string()).collect();
+    if let Some(unknown) = names.iter().find(|n| !registered.contains(n)) {
+        bail!("no backend {unknown:?} is registered (registered: {})", registered.join(", "));
+    }
+    Ok(all.into_iter().filter(|b| names.is_empty() || names.iter().any(|n| n == b.name())).collect())
+}
+
+/// Writes rows to the CSV as they finish, flushing each.
+struct CsvAppender {
+    file: File,
+}
+
+impl CsvAppender {
+    /// Keeps the rows of `path` that this invocation does not redo, rewrites the file with them,
+    /// and opens it for appending.
+    fn open(path: &Path, redo: &dyn Fn(&Row) -> bool) -> Result<(Self, Vec<Row>)> {
+        let kept: Vec<Row> = match fs::read_to_string(path) {
+            Ok(text) => {
+                parse_csv(&text).map(|rows| rows.into_iter().filter(|r| !redo(r)).collect()).unwrap_or_default()
+            }
+            Err(_) => Vec::new(),
+        };
+        let mut text = format!("{CSV_HEADER}\n");
+        for r in &kept {
+            text.push_str(&r.to_csv());
+            text.push('\n');
+        }
+        fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
+        let file = OpenOptions::new().append(true).open(path).with_context(|| format!("opening {}", path.display()))?;
+        Ok((Self { file }, kept))
+    }
+
+    fn append(&mut self, row: &Row) -> std::io::Result<()> {
+        writeln!(self.file, "{}", row.to_csv())?;
+        self.file.flush()
+    }
+}
+
+struct Observer<'a> {
+    csv: &'a mut CsvAppender,
+    bar: &'a ProgressBar,
+    rss: RssProbe,
+    label: String,
+    write_error: Option<std::io::Error>,
+}
+
+impl StudyObserver for Observer<'_> {
+    fn before_level(&mut self, problem: Problem, n: usize, repetitions: usize) {
+        self.bar.set_message(format!("{} {} n = {n} (×{repetitions})", self.label, problem.key()));
+        self.rss.reset();
+    }
+
+    fn peak_rss_mb(&mut self) -> Option<f64> {
+        self.rss.peak_mb()
+    }
+
+    fn row_done(&mut self, row: &Row) {
+        if let Err(e) = self.csv.append(row) {
+            self.write_error.get_or_insert(e);
+        }
+        self.bar.println(format!(
+            "  {} {} n = {:>3}: {} DOFs, {:.3} s{}",
+            row.method(),
+            row.problem,
+            row.n,
+            row.dofs,
+            row.seconds_total.unwrap_or(f64::NAN),
+            match (row.l2_rel_error, row.tip_uz_avg) {
+                (Some(e), _) => format!(", L2 {e:.3e}"),
+                (_, Some(t)) => format!(", tip {t:.5} m"),
+                _ => String::new(),
+            }
+        ));
+    }
+}
+
+/// Runs `cargo xtask compare`.
+pub fn compare(args: CompareArgs) -> Result<()> {
+    let problems = selected_problems(&args.problem)?;
+    let chosen = selected_backends(&args.backends)?;
+    fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let csv_path = args.out.join("compare.csv");
+    let methods: Vec<(String, String)> =
+        chosen.iter().flat_map(|b| b.variants().into_iter().map(|v| (b.name().to_string(), v))).collect();
+    let redo = |r: &Row| {
+        problems.iter().any(|p| p.key() == r.problem) && methods.iter().any(|(b, v)| *b == r.backend && *v == r.variant)
+    };
+    let (mut csv, kept) = CsvAppender::open(&csv_path, &redo)?;
+
+    let studies = (methods.len() * problems.len()) as u64;
+    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(studies) };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30.cyan/blue} {pos}/{len} studies  {elapsed_precise}  {msg}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    let mut rows = kept;
+    let mut stops = Vec::new();
+    for backend in &chosen {
+        for variant in backend.variants() {
+            for &problem in &problems {
+                let plan = if args.quick { StudyPlan::quick(problem) } else { StudyPlan::full(args.budget) };
+                let label = format!("{}/{variant}", backend.name());
+                let mut observer = Observer {
+                    csv: &mut csv,
+                    bar: &bar,
+                    rss: RssProbe::new(),
+                    label: label.clone(),
+                    write_error: None,
+                };
+                let outcome = run_study(backend.as_ref(), &variant, problem, &plan, &mut observer);
+                if let Some(e) = observer.write_error {
+                    return Err(e).with_context(|| format!("appending to {}", csv_path.display()));
+                }
+                stops.push(format!(
+                    "{label} {}: {} levels, stopped by {}",
+                    problem.key(),
+                    outcome.rows.len(),
+                    outcome.stop_reason
+                ));
+                rows.extend(outcome.rows);
+                bar.inc(1);
+            }
+        }
+    }
+    bar.set_message("Table 1 timings");
+    let mut table1 = Vec::new();
+    for backend in &chosen {
+        for variant in backend.variants() {
+            let timing = table1_timings(backend.as_ref(), &variant, 3);
+            table1.push((backend.name().to_string(), variant, timing.map_err(|e| e.to_string())));
+        }
+    }
+    bar.finish_and_clear();
+
+    let report = report(&args, &rows, &stops, &table1);
+    println!("{report}");
+    let md_path = args.out.join("compare.md");
+    fs::write(&md_path, &report).with_context(|| format!("writing {}", md_path.display()))?;
+    let written = plots::compare_plots(&rows, &args.out)?;
+    println!("wrote {}, {} and {}", csv_path.display(), md_path.display(), written.join(", "));
+    Ok(())
+}
+
+fn sci(value: Option<f64>) -> String {
+    value.map_or_else(|| "—".into(), |v| format!("{v:.3e}"))
+}
+
+fn fixed(value: Option<f64>, digits: usize) -> String {
+    value.map_or_else(|| "—".into(), |v| format!("{v:.digits$}"))
+}
+
+fn rate(value: Option<f64>) -> String {
+    value.map_or_else(|| "".into(), |v| format!("{v:.2}"))
+}
+
+fn mb(value: Option<f64>) -> String {
+    value.map_or_else(|| "—".into(), |v| format!("{v:.0}"))
+}
+
+/// Rows of one problem grouped by method, each group sorted by n, methods in first-seen order.
+fn by_method<'a>(rows: &'a [Row], problem: Problem) -> Vec<(String, Vec<&'a Row>)> {
+    let mut groups: Vec<(String, Vec<&Row>)> = Vec::new();
+    for r in rows.iter().filter(|r| r.problem == problem.key()) {
+        match groups.iter_mut().find(|(m, _)| *m == r.method()) {
+            Some((_, g)) => g.push(r),
+            None => groups.push((r.method(), vec![r])),
+        }
+    }
+    for (_, g) in &mut groups {
+        g.sort_by_key(|r| r.n);
+    }
+    groups
+}
+
+/// The relative tip error of a cantilever row against the reference.
+pub fn tip_error(row: &Row, reference: &TipReference) -> Option<f64> {
+    row.tip_uz_avg.map(|t| ((t - reference.value) / reference.value).abs())
+}
+
+fn report(
+    args: &CompareArgs,
+    rows: &[Row],
+    stops: &[String],
+    table1: &[(String, String, Result<Table1Timings, String>)],
+) -> String {
+    let mut md = String::new();
+    let w = &mut md;
+    let _ = writeln!(w, "# Backend comparison\n");
+    let _ = writeln!(
+        w,
+        "Problems of [`docs/math/benchmarks.md`](../math/benchmarks.md) §1–§3, every registered backend and \
+         variant, refined n = 1, 2, 4, … (MMS from 2) until the per-study budget ({} s per backend, variant and \
+         problem{}) would be exceeded: the next level's time is predicted as the last one's times the last growth \
+         factor clamped to [8, 16]. Raw rows: [`compare.csv`](compare.csv) (one per run, appended as each \
+         finishes).\n",
+        args.budget,
+        if args.quick { "; `--quick` caps the levels instead" } else { "" }
+    );
+    let header = format!(
+        "{}  \nCommand: `{}` (release build). Timings are wall-clock medians of 3 repetitions, or of 1 for \
+         runs predicted to take over 3 s (column *reps*). *setup* = building the discretization, loads, \
+         Dirichlet data, sparsity pattern and symbolic factorization; *assemble* = matrix values; *solve* = \
+         numeric Cholesky factorization and solve; *total* = the whole run without error evaluation. Peak RSS \
+         is the process's high-water mark reset before each level (`/proc/self/clear_refs`), so it includes \
+         the harness itself.\n",
+        machine_line(),
+        args.command
+    );
+    let _ = writeln!(w, "## Manufactured solutions (§1)\n");
+    let _ = writeln!(
+        w,
+        "Unit cube, E = 1e6 Pa, ν = 0.3, Dirichlet data u = u_exact on the whole boundary (nodal backends \
+         interpolate it at boundary nodes; weak backends integrate it in their boundary terms). Errors are \
+         relative, with a Gauss rule exact to degree 6 per element; rates are log(e_coarse/e_fine)/log 2 \
+         between consecutive rows.\n"
+    );
+    let _ = writeln!(w, "{header}");
+    for problem in [Problem::MmsSin111, Problem::MmsCos123] {
+        let groups = by_method(rows, problem);
+        if groups.is_empty() {
+            continue;
+        }
+        let _ = writeln!(w, "### `{}`\n", problem.key());
+        let _ = writeln!(
+            w,
+            "| method | n | DOFs | elements | nnz | L2 error | L2 rate | H1 error | H1 rate | setup [s] | assemble [s] | solve [s] | total [s] | reps | peak RSS [MB] |"
+        );
+        let _ = writeln!(w, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+        for (method, g) in &groups {
+            let l2 = observed_rates(g, |r| r.l2_rel_error);
+            let h1 = observed_rates(g, |r| r.h1_rel_error);
+            for (i, r) in g.iter().enumerate() {
+                let _ = writeln!(
+                    w,
+                    "| {method} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+                    r.n,
+                    r.dofs,
+                    r.elements,
+                    r.nnz.map_or("—".into(), |v| v.to_string()),
+                    sci(r.l2_rel_error),
+                    rate(l2[i]),
+                    sci(r.h1_rel_error),
+                    rate(h1[i]),
+                    sci(r.seconds_setup),
+                    sci(r.seconds_assemble),
+                    sci(r.seconds_solve),
+                    sci(r.seconds_total),
+                    r.repetitions,
+                    mb(r.peak_rss_mb)
+                );
+            }
+        }
+        let _ = writeln!(w);
+    }
+    let _ = writeln!(w, "![relative error against run time](error_vs_time.svg)\n");
+    let _ = writeln!(w, "![relative error against DOFs](error_vs_dofs.svg)\n");
+
+    let reference = cantilever_reference(rows);
+    let cantilever = by_method(rows, Problem::Cantilever);
+    if !cantilever.is_empty() {
+        let _ = writeln!(w, "## Static cantilever (§2)\n");
+        let _ = writeln!(
+            w,
+            "Beam [0,4]×[0,1]×[0,1] as 4n × n × n cells, clamped at x = 0, body force (0, 0, −ρg), E = 1e6 Pa, \
+             ν = 0.3, ρ = 1000 kg/m³, linear (unwarped) static solve. `tip_uz_avg` is the mean of u_z over the \
+             face x = 4 (2×2 Gauss points per cell face, evaluated by embedding), `tip_uz_point` is u_z at \
+             (4, 0.5, 0.5), the strain energy is ½ fᵀu.\n"
+        );
+        match &reference {
+            Some(r) => {
+                let _ = writeln!(
+                    w,
+                    "**Reference.** The clamped edges make every method converge like h^(2λ) with λ = 0.711 at \
+                     ν = 0.3 (benchmarks.md §2). For each method, Richardson extrapolation with that known rate \
+                     from its two finest runs, u_ref = u_f + (u_f − u_c)/(2^(2λ) − 1), estimates the limit; the \
+                     reference is the extrapolation of the method whose finest run it judges most accurate: \
+                     **{}** from n = {} and {} ({:.6} m and {:.6} m) gives **tip_uz_avg = {:.6} m** (estimated \
+                     error of its finest run {:.2}%). Tip errors below are |u − u_ref| / |u_ref|; their rates \
+                     should approach 2λ = 1.42.\n",
+                    r.method,
+                    r.levels.0,
+                    r.levels.1,
+                    r.values.0,
+                    r.values.1,
+                    r.value,
+                    100.0 * r.finest_error
+                );
+            }
+            None => {
+                let _ = writeln!(w, "No method has two levels yet, so there is no extrapolated reference.\n");
+            }
+        }
+        let _ = writeln!(w, "{header}");
+        let _ = writeln!(
+            w,
+            "| method | n | DOFs | elements | tip_uz_avg [m] | tip_uz_point [m] | strain energy [J] | tip error | rate | setup [s] | assemble [s] | solve [s] | total [s] | reps | peak RSS [MB] |"
+        );
+        let _ = writeln!(w, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+        for (method, g) in &cantilever {
+            let errors: Vec<Option<f64>> =
+                g.iter().map(|r| reference.as_ref().and_then(|rf| tip_error(r, rf))).collect();
+            let rates = observed_rates(g, |r| reference.as_ref().and_then(|rf| tip_error(r, rf)));
+            for (i, r) in g.iter().enumerate() {
+                let _ = writeln!(
+                    w,
+                    "| {method} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+                    r.n,
+                    r.dofs,
+                    r.elements,
+                    fixed(r.tip_uz_avg, 6),
+                    fixed(r.tip_uz_point, 6),
+                    sci(r.strain_energy),
+                    sci(errors[i]),
+                    rate(rates[i]),
+                    sci(r.seconds_setup),
+                    sci(r.seconds_assemble),
+                    sci(r.seconds_solve),
+                    sci(r.seconds_total),
+                    r.repetitions,
+                    mb(r.peak_rss_mb)
+                );
+            }
+        }
+        let _ = writeln!(w);
+    }
+
+    let dynamic = by_method(rows, Problem::Dynamic);
+    if !dynamic.is_empty() {
+        let _ = writeln!(w, "## Dynamic beam (§3)\n");
+        let _ = writeln!(
+            w,
+            "The same beam with E = 1e8 Pa, ν = 0.3, ρ = 1000 kg/m³, Rayleigh β = 0.01 s, clamped, released \
+             from rest under gravity: {DYNAMIC_STEPS} corotated linearly implicit Euler steps of 1/60 s with \
+             each backend's time-stepping solver (Cholesky for voxel). Tip values are at t = 2 s; *Δ finest* is \
+             the difference to the same method's finest level (no exact solution). Per-step times are the \
+             integrator's phases divided by the steps; *setup* builds the discretization and the integrator \
+             (pattern, symbolic factorization).\n"
+        );
+        let _ = writeln!(w, "{header}");
+        let _ = writeln!(
+            w,
+            "| method | n | DOFs | nnz | tip_uz_avg(2 s) [m] | tip_uz_point(2 s) [m] | Δ finest [m] | setup [s] | rotations [ms/step] | assembly [ms/step] | solve [ms/step] | total [ms/step] | reps | peak RSS [MB] |"
+        );
+        let _ = writeln!(w, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+        for (method, g) in &dynamic {
+            let finest = g.last().and_then(|r| r.tip_uz_avg);
+            for r in g {
+                let steps = r.steps.unwrap_or(DYNAMIC_STEPS) as f64;
+                let per_step = |s: Option<f64>| fixed(s.map(|s| 1e3 * s / steps), 3);
+                let total_steps = match (r.seconds_total, r.seconds_setup) {
+                    (Some(t), Some(s)) => Some(t - s),
+                    _ => None,
+                };
+                let _ = writeln!(
+                    w,
+                    "| {method} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+                    r.n,
+                    r.dofs,
+                    r.nnz.map_or("—".into(), |v| v.to_string()),
+                    fixed(r.tip_uz_avg, 6),
+                    fixed(r.tip_uz_point, 6),
+                    sci(r.tip_uz_avg.zip(finest).map(|(a, b)| (a - b).abs())),
+                    sci(r.seconds_setup),
+                    per_step(r.seconds_rotations),
+                    per_step(r.seconds_assemble),
+                    per_step(r.seconds_solve),
+                    per_step(total_steps),
+                    r.repetitions,
+                    mb(r.peak_rss_mb)
+                );
+            }
+        }
+        let _ = writeln!(w);
+    }
+    let _ = writeln!(w, "![time per phase at each method's finest level](phases.svg)\n");
+
+    let _ = writeln!(w, "## kaufmann2008 Table 1\n");
+    let _ = writeln!(
+        w,
+        "Integration (building the discretization: element and face integrals), assembly (sparsity pattern, \
+         symbolic factorization and values) and solve (numeric Cholesky factorization and solve) on a \
+         10×10×10 grid of the unit cube, clamped at x = 0 under gravity, in ms. The paper's column was measured \
+         on a Core2 Duo 2.4 GHz; ours are medians of 3 runs on the machine named above. A row of ours \
+         appears as soon as its backend is registered (`cleave_testkit::compare::table1_timings`).\n"
+    );
+    let _ =
+        writeln!(w, "| method | paper: integration | assembly | solve | ours: integration | assembly | solve | DOFs |");
+    let _ = writeln!(w, "|---|---|---|---|---|---|---|---|");
+    let ours =
+        |backend: &str, variant: &str| table1.iter().find(|(b, v, _)| b == backend && v == variant).map(|(_, _, t)| t);
+    let cells = |t: Option<&Result<Table1Timings, String>>| match t {
+        Some(Ok(t)) => {
+            format!("{:.1} | {:.1} | {:.1} | {}", 1e3 * t.integration, 1e3 * t.assembly, 1e3 * t.solve, t.dofs)
+        }
+        Some(Err(e)) => format!("failed: {} | | | ", e.replace('|', "/")),
+        None => "not registered yet | | | ".into(),
+    };
+    for (label, backend, variant, [i, a, s]) in KAUFMANN2008_TABLE1 {
+        let _ = writeln!(
+            w,
+            "| {label} ({backend}/{variant}) | {i:.0} | {a:.0} | {s:.0} | {} |",
+            cells(ours(backend, variant))
+        );
+    }
+    for (backend, variant, t) in table1 {
+        if !KAUFMANN2008_TABLE1.iter().any(|(_, b, v, _)| b == backend && v == variant) {
+            let _ = writeln!(w, "| {backend}/{variant} (not in the paper) | — | — | — | {} |", cells(Some(t)));
+        }
+    }
+    let _ = writeln!(w);
+    let _ = writeln!(w, "## How each study stopped\n");
+    for s in stops {
+        let _ = writeln!(w, "- {s}");
+    }
+    md
+}

@@ -1,0 +1,161 @@
+//! `cargo xtask stability`: the benchmarks.md §4 grid for every registered backend and variant,
+//! a table per method to the terminal and to `stability.md`, every cell to `stability.csv`
+//! (appended and flushed as it finishes).
+
+use crate::compare::selected_backends;
+use crate::machine::machine_line;
+use anyhow::{Context, Result};
+use cleave_testkit::stability::{
+    CSV_HEADER, CellResult, DENSITY, ENERGY_TOLERANCE, POISSON_RATIOS, Start, TIME_STEPS, Verdict, YOUNGS_MODULI,
+    beam_grid, cells, run_cell,
+};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::fmt::Write as _;
+use std::fs::{self, OpenOptions};
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Parsed arguments of `cargo xtask stability`.
+pub struct StabilityArgs {
+    /// 20 steps per cell instead of 600 (CI).
+    pub quick: bool,
+    /// Backends (empty = all).
+    pub backends: Vec<String>,
+    /// Output directory.
+    pub out: PathBuf,
+    /// The command as typed.
+    pub command: String,
+    /// No progress bar.
+    pub quiet: bool,
+}
+
+fn h_label(h: f64) -> String {
+    if (h - 1.0 / 60.0).abs() < 1e-12 {
+        "1/60".into()
+    } else if (h - 1.0 / 30.0).abs() < 1e-12 {
+        "1/30".into()
+    } else {
+        format!("{h:e}")
+    }
+}
+
+/// Runs `cargo xtask stability`.
+pub fn stability(args: StabilityArgs) -> Result<()> {
+    let chosen = selected_backends(&args.backends)?;
+    let steps = if args.quick { 20 } else { 600 };
+    fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let csv_path = args.out.join("stability.csv");
+    fs::write(&csv_path, format!("{CSV_HEADER}\n")).with_context(|| format!("writing {}", csv_path.display()))?;
+    let mut csv =
+        OpenOptions::new().append(true).open(&csv_path).with_context(|| format!("opening {}", csv_path.display()))?;
+    let grid = cells();
+    let methods: Vec<(usize, String)> =
+        chosen.iter().enumerate().flat_map(|(i, b)| b.variants().into_iter().map(move |v| (i, v))).collect();
+    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new((methods.len() * grid.len()) as u64) };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30.cyan/blue} {pos}/{len} cells  {elapsed_precise}  {msg}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    let mut results: Vec<CellResult> = Vec::new();
+    for (b, variant) in &methods {
+        let backend = chosen[*b].as_ref();
+        for cell in &grid {
+            bar.set_message(format!(
+                "{}/{variant} {} E={:e} ν={} h={}",
+                backend.name(),
+                cell.case(),
+                cell.youngs_modulus,
+                cell.poisson_ratio,
+                h_label(cell.time_step)
+            ));
+            let result = run_cell(backend, variant, *cell, steps);
+            writeln!(csv, "{}", result.to_csv(steps))
+                .and_then(|_| csv.flush())
+                .with_context(|| format!("appending to {}", csv_path.display()))?;
+            results.push(result);
+            bar.inc(1);
+        }
+    }
+    bar.finish_and_clear();
+
+    let beam = beam_grid();
+    let mut md = String::new();
+    let w = &mut md;
+    let _ = writeln!(w, "# Stability grid\n");
+    let _ = writeln!(
+        w,
+        "benchmarks.md §4 for every registered backend and variant. Each cell is a beam of {:.2} m × {:.2} m × \
+         {:.2} m as {} × {} × {} cells, clamped at x = 0 (Dirichlet data as the backend imposes it), ρ = {DENSITY} \
+         kg/m³, no damping, released from rest under gravity and run for {steps} corotated linearly implicit Euler \
+         steps with the backend's time-stepping solver. A cell passes when the run finishes without NaN, the \
+         solver converges at every step, and the total energy E = kinetic + elastic + gravitational (measured \
+         from the start) never exceeds E(0) by more than {:.0}% of the run's energy scale, the largest of \
+         |E(0)|, kinetic + elastic and the gravitational work over the run (a start from rest has E(0) = 0, so \
+         a bare ratio to E(0) would be meaningless). A failure names its mode and step; *×N* is \
+         1 + max(E − E(0))/scale. Extreme cases run at E = 1e6 Pa, ν = 0.3, h = 1/60 s. Raw cells: \
+         [`stability.csv`](stability.csv).\n",
+        beam.max_corner().x,
+        beam.max_corner().y,
+        beam.max_corner().z,
+        beam.dims[0],
+        beam.dims[1],
+        beam.dims[2],
+        100.0 * ENERGY_TOLERANCE
+    );
+    let _ = writeln!(w, "{}  \nCommand: `{}` (release build).\n", machine_line(), args.command);
+    for (b, variant) in &methods {
+        let name = chosen[*b].name();
+        let own: Vec<&CellResult> = results.iter().filter(|r| r.backend == name && r.variant == *variant).collect();
+        let passed = own.iter().filter(|r| r.verdict.passed()).count();
+        let not_applicable = own.iter().filter(|r| matches!(r.verdict, Verdict::NotApplicable(_))).count();
+        let _ = writeln!(
+            w,
+            "## {name}/{variant}: {passed} pass, {} fail, {not_applicable} not applicable (of {} cells)\n",
+            own.len() - passed - not_applicable,
+            own.len()
+        );
+        let _ = write!(w, "| E [Pa] | ν |");
+        for h in TIME_STEPS {
+            let _ = write!(w, " h = {} s |", h_label(h));
+        }
+        let _ = writeln!(w, "\n|---|---|{}", "---|".repeat(TIME_STEPS.len()));
+        for e in YOUNGS_MODULI {
+            for nu in POISSON_RATIOS {
+                let _ = write!(w, "| {e:e} | {nu} |");
+                for h in TIME_STEPS {
+                    let text = own
+                        .iter()
+                        .find(|r| {
+                            r.cell.start == Start::Rest
+                                && r.cell.youngs_modulus == e
+                                && r.cell.poisson_ratio == nu
+                                && r.cell.time_step == h
+                        })
+                        .map_or("—".into(), |r| r.verdict.to_string());
+                    let _ = write!(w, " {text} |");
+                }
+                let _ = writeln!(w);
+            }
+        }
+        let _ = writeln!(w, "\n| extreme case | verdict | steps done | max energy factor | max inverted elements |");
+        let _ = writeln!(w, "|---|---|---|---|---|");
+        for r in own.iter().filter(|r| r.cell.start != Start::Rest) {
+            let _ = writeln!(
+                w,
+                "| {} | {} | {} | {:.4} | {} |",
+                r.cell.case(),
+                r.verdict,
+                r.steps_done,
+                r.max_energy_factor,
+                r.max_inverted
+            );
+        }
+        let _ = writeln!(w);
+    }
+    println!("{md}");
+    let md_path = args.out.join("stability.md");
+    fs::write(&md_path, &md).with_context(|| format!("writing {}", md_path.display()))?;
+    println!("wrote {} and {}", csv_path.display(), md_path.display());
+    Ok(())
+}
