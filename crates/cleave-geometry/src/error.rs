@@ -278,4 +278,23 @@ pub enum GeometryError {
         /// The maximum, [`MAX_MOMENT_DEGREE`](crate::MAX_MOMENT_DEGREE).
         limit: usize,
     },
+    /// Hexahedral slicing found no grid shift that keeps every surface vertex, edge crossing
+    /// and triangle–grid-line crossing away from the grid planes (see
+    /// [`GRID_MARGIN`](crate::GRID_MARGIN)).
+    #[error("hexahedral slicing at cell size {cell_size}: no generic grid shift in {attempts} attempts")]
+    NoGenericGridShift {
+        /// The requested cell size.
+        cell_size: f64,
+        /// Number of shifts tried.
+        attempts: usize,
+    },
+    /// Hexahedral slicing produced an inconsistent arrangement in a grid cell (e.g. for a
+    /// self-intersecting surface).
+    #[error("hexahedral slicing failed in grid cell {cell:?}: {message}")]
+    SliceInconsistent {
+        /// The grid cell `[i, j, k]` (for a face: the cell above it).
+        cell: [i32; 3],
+        /// What did not fit together.
+        message: String,
+    },
 }

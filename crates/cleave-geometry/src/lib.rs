@@ -10,6 +10,8 @@
 //! - [`triangle_aabb_overlap`] (module `overlap`).
 //! - [`voxelize`] producing a [`VoxelGrid`] (module `voxelize`), following Müller et al.
 //!   2004, §2.1.
+//! - [`hex_slice`] producing a [`HexSlicing`] (module `hex_slice`): a closed surface sliced by
+//!   a cube grid into polyhedral elements (Kaufmann et al. 2008, §10).
 //! - [`PolyhedralMesh`] (module `polyhedral`): polyhedral elements with shared planar
 //!   polygon faces, for the DG backend (Kaufmann et al. 2008), checked by
 //!   [`PolyhedralMesh::validate`] (module `poly_validate`) returning [`PolyMeshStats`].
@@ -20,6 +22,7 @@
 //! [`GeometryError`] values naming the offending triangle, edge, vertex or OBJ line.
 
 mod error;
+mod hex_slice;
 mod inside;
 mod mesh;
 mod moments;
@@ -31,6 +34,7 @@ mod validate;
 mod voxelize;
 
 pub use error::GeometryError;
+pub use hex_slice::{GRID_MARGIN, HexSlicing, MAX_SLICE_CELLS, hex_slice};
 pub use inside::InsideTester;
 pub use mesh::TriangleMesh;
 pub use moments::{

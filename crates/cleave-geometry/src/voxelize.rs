@@ -135,6 +135,18 @@ pub fn voxelize(mesh: &TriangleMesh, cell_size: f64) -> Result<VoxelGrid, Geomet
     let (lo, hi) = mesh.aabb();
     let origin = lo - Vector3::repeat(h / 2.0);
     let dims_f: [f64; 3] = std::array::from_fn(|d| ((hi[d] - lo[d]) / h + 0.5).floor() + 1.0);
+    voxelize_on_grid(mesh, origin, h, dims_f)
+}
+
+/// [`voxelize`] on a caller-chosen grid: `dims_f` cells (whole numbers, possibly huge) of edge
+/// `h` from `origin`. The mesh must already have passed the input checks of [`voxelize`]; the
+/// grid must cover the mesh's bounding box (cells outside it are simply not listed).
+pub(crate) fn voxelize_on_grid(
+    mesh: &TriangleMesh,
+    origin: Point3<f64>,
+    h: f64,
+    dims_f: [f64; 3],
+) -> Result<VoxelGrid, GeometryError> {
     let cells_f: f64 = dims_f.iter().product();
     if cells_f.is_nan() || cells_f > MAX_GRID_CELLS as f64 {
         return Err(GeometryError::GridTooLarge { dims: dims_f, cells: cells_f, limit: MAX_GRID_CELLS });

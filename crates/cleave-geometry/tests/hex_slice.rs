@@ -1,0 +1,290 @@
+//! Tests of `hex_slice`: element volumes against the surface's enclosed volume, closed and
+//! consistently oriented element boundaries, separate elements for separate pieces of one cell,
+//! boundary faces tiling the surface, and input errors.
+
+mod common;
+
+use std::collections::{HashMap, HashSet};
+use std::time::Instant;
+
+use cleave_geometry::{GeometryError, HexSlicing, PolyhedralMesh, TriangleMesh, hex_slice, triangle_aabb_overlap};
+use common::{box_mesh, bunny, icosphere};
+use nalgebra::{Point3, Vector3};
+
+/// Outward polygons of every element: `(face, vertex indices in outward order)`.
+fn element_polygons(mesh: &PolyhedralMesh) -> Vec<Vec<(usize, Vec<u32>)>> {
+    let mut out = vec![Vec::new(); mesh.num_elements];
+    for (f, face) in mesh.faces.iter().enumerate() {
+        out[face.inner as usize].push((f, face.polygon.clone()));
+        if let Some(o) = face.outer {
+            out[o as usize].push((f, face.polygon.iter().rev().copied().collect()));
+        }
+    }
+    out
+}
+
+/// Six times the signed volume of the cone from the origin over an outward polygon (fan
+/// triangles from its first vertex).
+fn six_cone_volume(vertices: &[Point3<f64>], polygon: &[u32]) -> f64 {
+    let p = |k: usize| vertices[polygon[k] as usize].coords;
+    (1..polygon.len() - 1).map(|k| p(0).dot(&p(k).cross(&p(k + 1)))).sum()
+}
+
+/// Element volumes by the divergence theorem, independent of the crate's integration code.
+fn element_volumes(mesh: &PolyhedralMesh) -> Vec<f64> {
+    element_polygons(mesh)
+        .iter()
+        .map(|faces| faces.iter().map(|(_, poly)| six_cone_volume(&mesh.vertices, poly)).sum::<f64>() / 6.0)
+        .collect()
+}
+
+/// Newell area vector of a polygon.
+fn area_vector(vertices: &[Point3<f64>], polygon: &[u32]) -> Vector3<f64> {
+    let n = polygon.len();
+    (0..n)
+        .map(|k| vertices[polygon[k] as usize].coords.cross(&vertices[polygon[(k + 1) % n] as usize].coords))
+        .sum::<Vector3<f64>>()
+        / 2.0
+}
+
+/// Asserts every element boundary is closed and consistently oriented: each directed edge of
+/// its outward faces appears once, and so does its reverse.
+fn assert_closed_oriented(mesh: &PolyhedralMesh) {
+    for (e, faces) in element_polygons(mesh).iter().enumerate() {
+        let mut edges = HashSet::new();
+        for (f, poly) in faces {
+            for k in 0..poly.len() {
+                let edge = (poly[k], poly[(k + 1) % poly.len()]);
+                assert!(edges.insert(edge), "element {e}: directed edge {edge:?} used twice (face {f})");
+            }
+        }
+        for &(a, b) in &edges {
+            assert!(edges.contains(&(b, a)), "element {e}: edge ({a}, {b}) has no reverse");
+        }
+    }
+}
+
+/// Structural checks shared by all inputs; returns (sum of element volumes, boundary area).
+fn check_slicing(name: &str, surface: &TriangleMesh, s: &HexSlicing) -> (f64, f64) {
+    let mesh = &s.mesh;
+    let h = s.cell_size;
+    assert_eq!(s.element_cells.len(), mesh.num_elements);
+    assert_closed_oriented(mesh);
+    let volumes = element_volumes(mesh);
+    let min_volume = volumes.iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(min_volume > 0.0, "{name}: an element has volume {min_volume:e}");
+    let total: f64 = volumes.iter().sum();
+    let expected = surface.signed_volume();
+    let mut boundary_area = 0.0;
+    let mut min_area = f64::INFINITY;
+    for face in &mesh.faces {
+        let n = face.polygon.len();
+        assert!(n >= 3);
+        let distinct: HashSet<u32> = face.polygon.iter().copied().collect();
+        assert_eq!(distinct.len(), n, "{name}: face repeats a vertex: {:?}", face.polygon);
+        let area = area_vector(&mesh.vertices, &face.polygon).norm();
+        min_area = min_area.min(area);
+        match face.outer {
+            None => boundary_area += area,
+            Some(o) => {
+                assert_ne!(o, face.inner);
+                // Interior faces lie on one grid plane.
+                let on_plane = (0..3).any(|d| {
+                    let c = mesh.vertices[face.polygon[0] as usize][d];
+                    let p = ((c - s.origin[d]) / h).round();
+                    face.polygon
+                        .iter()
+                        .all(|&v| (mesh.vertices[v as usize][d] - (s.origin[d] + p * h)).abs() < 1e-12 * h)
+                });
+                assert!(on_plane, "{name}: interior face off the grid planes");
+            }
+        }
+    }
+    println!(
+        "{name}: h = {h}, {} elements, {} faces, {} vertices; volume {total:.12} vs {expected:.12} (rel {:.1e}); \
+         boundary area rel err {:.1e}; min face area {:.1e} h², min element volume {:.1e} h³",
+        mesh.num_elements,
+        mesh.faces.len(),
+        mesh.vertices.len(),
+        (total - expected).abs() / expected,
+        (boundary_area - surface.area()).abs() / surface.area(),
+        min_area / (h * h),
+        min_volume / (h * h * h),
+    );
+    assert!(min_area > 0.0, "{name}: degenerate face");
+    (total, boundary_area)
+}
+
+fn assert_rel(name: &str, what: &str, got: f64, expected: f64, tol: f64) {
+    let rel = (got - expected).abs() / expected.abs();
+    assert!(rel <= tol, "{name}: {what} {got} vs {expected}: relative error {rel:e} > {tol:e}");
+}
+
+fn check_volume_and_area(name: &str, surface: &TriangleMesh, cell_size: f64) -> HexSlicing {
+    let start = Instant::now();
+    let s = hex_slice(surface, cell_size).expect("slicing succeeds");
+    println!("{name}: sliced in {:.1} ms", start.elapsed().as_secs_f64() * 1e3);
+    let (volume, area) = check_slicing(name, surface, &s);
+    assert_rel(name, "sum of element volumes", volume, surface.signed_volume(), 1e-10);
+    assert_rel(name, "boundary face area", area, surface.area(), 1e-10);
+    s
+}
+
+/// Cells whose cube lies inside the solid and meets no triangle (checked with the crate's
+/// triangle–box test and the winding number of the centre).
+fn fully_inside_cells(surface: &TriangleMesh, s: &HexSlicing) -> HashSet<[i32; 3]> {
+    let h = s.cell_size;
+    let cells: HashSet<[i32; 3]> = s.element_cells.iter().copied().collect();
+    cells
+        .into_iter()
+        .filter(|c| {
+            let lo = s.origin + Vector3::from(c.map(f64::from)) * h;
+            let hi = lo + Vector3::repeat(h);
+            let touched = (0..surface.triangles.len())
+                .any(|t| triangle_aabb_overlap(&surface.triangle_points(t).expect("valid triangle"), &lo, &hi));
+            !touched && surface.contains(&nalgebra::center(&lo, &hi))
+        })
+        .collect()
+}
+
+#[test]
+fn bunny_volumes_areas_and_cubes() {
+    let surface = bunny();
+    for (name, cell_size) in [("bunny ~41", 3.0), ("bunny ~300", 1.1), ("bunny ~5000", 0.375)] {
+        let s = check_volume_and_area(name, &surface, cell_size);
+        let inside = fully_inside_cells(&surface, &s);
+        let mut cubes = 0;
+        let faces = element_polygons(&s.mesh);
+        for (e, cell) in s.element_cells.iter().enumerate() {
+            if inside.contains(cell) {
+                cubes += 1;
+                assert_eq!(faces[e].len(), 6, "{name}: inside cell {cell:?} element has {} faces", faces[e].len());
+                for (f, poly) in &faces[e] {
+                    assert_eq!(poly.len(), 4);
+                    assert!(s.mesh.faces[*f].outer.is_some(), "{name}: cube face without outer element");
+                    let a = area_vector(&s.mesh.vertices, poly).norm();
+                    assert_rel(name, "cube face area", a, cell_size * cell_size, 1e-12);
+                }
+            }
+        }
+        let cut_cells: HashSet<[i32; 3]> = s.element_cells.iter().copied().filter(|c| !inside.contains(c)).collect();
+        println!("{name}: {cubes} interior cubes, {} cut cells", cut_cells.len());
+    }
+}
+
+#[test]
+fn icosphere_volume_and_area() {
+    let surface = icosphere(3, 1.0, Point3::new(0.1, -0.2, 0.3));
+    let s = check_volume_and_area("icosphere", &surface, 0.3);
+    // Every cell meeting the sphere holds one piece: the sphere is convex.
+    let mut per_cell: HashMap<[i32; 3], usize> = HashMap::new();
+    for c in &s.element_cells {
+        *per_cell.entry(*c).or_default() += 1;
+    }
+    assert!(per_cell.values().all(|&n| n == 1), "a convex solid split within a cell");
+}
+
+#[test]
+fn box_on_lattice_planes() {
+    // Faces at multiples of the cell size: the unshifted lattice would have every face on a
+    // grid plane and every corner on a grid corner.
+    let surface = box_mesh([0.0, 0.0, 0.0], [1.0, 1.0, 1.0]);
+    let h = 0.25;
+    let s = check_volume_and_area("box", &surface, h);
+    assert_rel("box", "sum of element volumes", element_volumes(&s.mesh).iter().sum(), 1.0, 1e-12);
+    // Each cell meeting the box holds one box-shaped piece; count the cells per axis.
+    let cells_per_axis = |d: usize| {
+        let first = ((0.0 - s.origin[d]) / h).floor();
+        let last = ((1.0 - s.origin[d]) / h).floor();
+        (last - first + 1.0) as usize
+    };
+    let expected: usize = (0..3).map(cells_per_axis).product();
+    assert_eq!(s.mesh.num_elements, expected);
+    for d in 0..3 {
+        let shift = ((0.0 - s.origin[d]) / h).fract();
+        assert!(shift > 1e-3 && shift < 1.0 - 1e-3, "axis {d}: grid not shifted off the box faces");
+    }
+}
+
+/// A U extruded along y: prongs x ∈ [0, 1] and [1.1, 2.1], z ∈ [1, 5], base z ∈ [0, 1],
+/// y ∈ [0, 1].
+fn u_shape() -> TriangleMesh {
+    let outline: [[f64; 2]; 10] = [
+        [0.0, 0.0],
+        [1.0, 0.0],
+        [1.1, 0.0],
+        [2.1, 0.0],
+        [2.1, 5.0],
+        [1.1, 5.0],
+        [1.1, 1.0],
+        [1.0, 1.0],
+        [1.0, 5.0],
+        [0.0, 5.0],
+    ];
+    // Cap triangles, counter-clockwise in (x, z).
+    let cap: [[u32; 3]; 8] = [[0, 1, 7], [0, 7, 8], [0, 8, 9], [1, 2, 6], [1, 6, 7], [2, 3, 6], [6, 3, 4], [6, 4, 5]];
+    let n = outline.len() as u32;
+    let mut vertices = Vec::new();
+    for y in [0.0, 1.0] {
+        vertices.extend(outline.iter().map(|&[x, z]| Point3::new(x, y, z)));
+    }
+    let mut triangles = Vec::new();
+    // Counter-clockwise in (x, z) has normal e_x × e_z = −y: the y = 0 cap as is.
+    for &[a, b, c] in &cap {
+        triangles.push([a, b, c]);
+        triangles.push([a + n, c + n, b + n]);
+    }
+    for k in 0..n {
+        let (p, q) = (k, (k + 1) % n);
+        triangles.push([p, p + n, q + n]);
+        triangles.push([p, q + n, q]);
+    }
+    TriangleMesh::new(vertices, triangles)
+}
+
+#[test]
+fn u_prongs_in_one_cell_are_separate_elements() {
+    let surface = u_shape();
+    surface.validate_closed().expect("the U is closed and outward");
+    let h = 2.0;
+    let s = check_volume_and_area("U", &surface, h);
+    let cell_of = |p: Point3<f64>| -> [i32; 3] { std::array::from_fn(|d| ((p[d] - s.origin[d]) / h).floor() as i32) };
+    let left = cell_of(Point3::new(0.99, 0.5, 4.5));
+    let right = cell_of(Point3::new(1.11, 0.5, 4.5));
+    assert_eq!(left, right, "test setup: the grid should put both prong tips in one cell");
+    let cell = left;
+    let elements: Vec<usize> = (0..s.mesh.num_elements).filter(|&e| s.element_cells[e] == cell).collect();
+    assert_eq!(elements.len(), 2, "cell {cell:?} should hold one element per prong");
+    let shared = s.mesh.faces.iter().any(|f| {
+        let sides = [Some(f.inner), f.outer];
+        elements.iter().all(|&e| sides.contains(&Some(e as u32)))
+    });
+    assert!(!shared, "the two prong elements share a face");
+    // Their volumes are the prongs clipped to the cell, computed from the box bounds.
+    let clip = |a: f64, b: f64, d: usize| {
+        let lo = s.origin[d] + f64::from(cell[d]) * h;
+        (b.min(lo + h) - a.max(lo)).max(0.0)
+    };
+    let y_z = clip(0.0, 1.0, 1) * clip(1.0, 5.0, 2);
+    let mut expected = [clip(0.0, 1.0, 0) * y_z, clip(1.1, 2.1, 0) * y_z];
+    let volumes = element_volumes(&s.mesh);
+    let mut got = [volumes[elements[0]], volumes[elements[1]]];
+    expected.sort_by(f64::total_cmp);
+    got.sort_by(f64::total_cmp);
+    println!("U: cell {cell:?}: prong volumes {got:?}, expected {expected:?}");
+    for k in 0..2 {
+        assert_rel("U", "prong volume", got[k], expected[k], 1e-12);
+    }
+}
+
+#[test]
+fn errors_for_bad_input() {
+    let surface = box_mesh([0.0; 3], [1.0; 3]);
+    for h in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        assert!(matches!(hex_slice(&surface, h), Err(GeometryError::InvalidCellSize { .. })), "cell size {h}");
+    }
+    assert!(matches!(hex_slice(&surface, 1e-4), Err(GeometryError::GridTooLarge { .. })));
+    let mut open = surface.clone();
+    open.triangles.pop();
+    assert_eq!(hex_slice(&open, 0.3).unwrap_err(), open.validate_closed().unwrap_err());
+}
