@@ -100,7 +100,7 @@ impl BlockSetBuilder {
     pub fn add_rest_matrix(&mut self, k: DMatrix<Real>) -> Result<u32, BlockSetError> {
         let index = self.rest_matrices.len();
         let bad = k.nrows() != k.ncols()
-            || k.nrows() % 3 != 0
+            || !k.nrows().is_multiple_of(3)
             || k.nrows() / 3 > MAX_BLOCK_NODES
             || (&k - k.transpose()).amax() > 1e-12 * k.amax().max(Real::MIN_POSITIVE);
         if bad {
@@ -276,7 +276,14 @@ impl BlockSet {
     }
 
     /// `values += s · Σ_b R K Rᵀ` on `pattern` (which must contain every block's node pairs).
-    pub fn add_to_matrix(&self, rotations: &[Matrix3<Real>], scale: Real, pattern: &AssemblyPattern, ranks: &BlockRanks, values: &mut [Real]) {
+    pub fn add_to_matrix(
+        &self,
+        rotations: &[Matrix3<Real>],
+        scale: Real,
+        pattern: &AssemblyPattern,
+        ranks: &BlockRanks,
+        values: &mut [Real],
+    ) {
         for b in 0..self.len() {
             let block = self.block(b);
             let r = Self::rotation(rotations, block.frame);
@@ -328,7 +335,15 @@ impl BlockRanks {
 
 /// `buf[node] += s · R (K local)` for every node of the block.
 #[inline]
-fn apply_warped(k: &DMatrix<Real>, r: &Matrix3<Real>, local: &[Real], nodes: &[u32], scale: Real, buf: &mut [Real], base: usize) {
+fn apply_warped(
+    k: &DMatrix<Real>,
+    r: &Matrix3<Real>,
+    local: &[Real],
+    nodes: &[u32],
+    scale: Real,
+    buf: &mut [Real],
+    base: usize,
+) {
     let n = local.len();
     let mut y = [0.0; 3 * MAX_BLOCK_NODES];
     // K is symmetric and stored column-major: (K v)_row = Σ_col K[col, row] v_col reads columns

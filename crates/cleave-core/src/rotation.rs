@@ -19,11 +19,13 @@ pub fn extract_rotation(f: &Matrix3<Real>, warm_start: &Matrix3<Real>, max_itera
     let scale = f.norm().max(Real::MIN_POSITIVE);
     for _ in 0..max_iterations {
         let r = q.to_rotation_matrix().into_inner();
-        let torque = r.column(0).cross(&f.column(0)) + r.column(1).cross(&f.column(1)) + r.column(2).cross(&f.column(2));
+        let torque =
+            r.column(0).cross(&f.column(0)) + r.column(1).cross(&f.column(1)) + r.column(2).cross(&f.column(2));
         let alignment = r.column(0).dot(&f.column(0)) + r.column(1).dot(&f.column(1)) + r.column(2).dot(&f.column(2));
         let omega = torque / (alignment.abs() + 1e-9 * scale);
         let angle = omega.norm();
-        if !(angle > 1e-12) {
+        // NaN angles stop too (partial_cmp is None).
+        if angle.partial_cmp(&1e-12) != Some(std::cmp::Ordering::Greater) {
             break;
         }
         q = UnitQuaternion::from_axis_angle(&Unit::new_unchecked(omega / angle), angle) * q;

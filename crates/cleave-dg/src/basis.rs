@@ -5,7 +5,7 @@
 //! distance; `G = ∫_K m mᵀ = L Lᵀ` (Cholesky); `ψ = A m` with `A = L⁻¹`, so `∫_K ψ ψᵀ = I`.
 
 use cleave_core::{Point3, Real, Vector3};
-use cleave_geometry::{monomial_exponents, monomial_index, Frame};
+use cleave_geometry::{Frame, monomial_exponents, monomial_index};
 use nalgebra::DMatrix;
 
 /// Number of monomials of degree ≤ `degree` in three variables.

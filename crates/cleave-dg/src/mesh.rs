@@ -2,14 +2,17 @@
 //! element and face integrals, BZ or IP fluxes, weak Dirichlet data, penalty doubling until the
 //! stiffness is positive definite, corotated face blocks. Formulas: docs/math/dg.md.
 
-use crate::basis::{add, basis_size, exponents, index, shifted_monomial, ElementBasis};
+use crate::basis::{ElementBasis, add, basis_size, exponents, index, shifted_monomial};
 use crate::quadrature::{polygon_rule, polyhedron_rule};
 use cleave_core::rotation::extract_rotation;
 use cleave_core::{
-    AssemblyPattern, BlockRanks, BlockSet, BlockSetBuilder, BlockSetError, Discretization, EmbedError, Embedding, FieldSample, Mass,
-    Material, Matrix3, Point3, Real, RotationStats, Vector3,
+    AssemblyPattern, BlockRanks, BlockSet, BlockSetBuilder, BlockSetError, Discretization, EmbedError, Embedding,
+    FieldSample, Mass, Material, Matrix3, Point3, Real, RotationStats, Vector3,
 };
-use cleave_geometry::{element_moments, element_volume_centroid, face_area_normal_centroid, face_moments, Frame, GeometryError, PolyhedralMesh};
+use cleave_geometry::{
+    ElementFace, Frame, GeometryError, PolyhedralMesh, element_moments_from_faces, face_area_normal_centroid,
+    face_moments,
+};
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 
@@ -35,9 +38,22 @@ pub struct DgOptions {
     pub max_doublings: u32,
 }
 
+impl DgOptions {
+    /// Degree and flux with the default penalty start: IP starts low (η = 1) and doubles until
+    /// positive definite, since accuracy is best just above the coercivity threshold (measured in
+    /// docs/math/dg.md §5); BZ, stable for any η, uses η = 10, the low end of the paper's range.
+    pub fn new(degree: usize, flux: Flux) -> Self {
+        let penalty = match flux {
+            Flux::InteriorPenalty => 1.0,
+            Flux::BabuskaZlamal => 10.0,
+        };
+        Self { degree, flux, penalty, max_doublings: 24 }
+    }
+}
+
 impl Default for DgOptions {
     fn default() -> Self {
-        Self { degree: 1, flux: Flux::InteriorPenalty, penalty: 1.0, max_doublings: 24 }
+        Self::new(1, Flux::InteriorPenalty)
     }
 }
 
@@ -116,7 +132,11 @@ pub struct DgMesh {
 
 impl std::fmt::Debug for DgMesh {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("DgMesh").field("name", &self.name).field("elements", &self.mesh.num_elements).field("penalty", &self.penalty).finish()
+        f.debug_struct("DgMesh")
+            .field("name", &self.name)
+            .field("elements", &self.mesh.num_elements)
+            .field("penalty", &self.penalty)
+            .finish()
     }
 }
 
@@ -138,7 +158,12 @@ fn lame_tensor(material: &Material, n: &Vector3<Real>) -> [[[Real; 3]; 3]; 3] {
 impl DgMesh {
     /// Builds the discretization: bases, element stiffness, face terms, weak Dirichlet data, and
     /// the penalty doubling (docs/math/dg.md §5).
-    pub fn new(mesh: PolyhedralMesh, material: Material, options: DgOptions, dirichlet: Option<&WeakDirichlet<'_>>) -> Result<Self, DgError> {
+    pub fn new(
+        mesh: PolyhedralMesh,
+        material: Material,
+        options: DgOptions,
+        dirichlet: Option<&WeakDirichlet<'_>>,
+    ) -> Result<Self, DgError> {
         if !(1..=2).contains(&options.degree) {
             return Err(DgError::Degree(options.degree));
         }
@@ -150,14 +175,24 @@ impl DgMesh {
         let exps = exponents(degree);
         let nb = exps.len();
         debug_assert_eq!(nb, basis_size(degree));
+        let outward_faces = mesh.element_faces();
         let element_faces: Vec<Vec<(u32, bool)>> =
-            mesh.element_faces().into_iter().map(|list| list.into_iter().map(|f| (f.face as u32, f.reversed)).collect()).collect();
+            outward_faces.iter().map(|list| list.iter().map(|f| (f.face as u32, f.reversed)).collect()).collect();
 
         // Bases from exact moments (divergence theorem), in parallel over elements.
         let bases: Vec<Result<ElementBasis, DgError>> = (0..mesh.num_elements)
             .into_par_iter()
             .map(|e| {
-                let (volume, centroid) = element_volume_centroid(&mesh, e);
+                // Volume and centroid from degree-1 moments in a frame at the first vertex.
+                let anchor = outward_faces[e]
+                    .first()
+                    .and_then(|f| f.polygon.first())
+                    .map_or(Point3::origin(), |&v| mesh.vertices[v as usize]);
+                let rough = Frame { center: anchor, scale: 1.0 };
+                let mut first = Vec::new();
+                element_moments_from_faces(&mesh, &outward_faces[e], &rough, 1, &mut first);
+                let volume = first[0];
+                let centroid = anchor + Vector3::new(first[1], first[2], first[3]) / volume;
                 let scale = element_faces[e]
                     .iter()
                     .flat_map(|&(f, _)| mesh.faces[f as usize].polygon.iter())
@@ -165,7 +200,7 @@ impl DgMesh {
                     .fold(0.0, Real::max);
                 let frame = Frame { center: centroid, scale };
                 let mut moments = Vec::new();
-                element_moments(&mesh, e, &frame, 2 * degree, &mut moments);
+                element_moments_from_faces(&mesh, &outward_faces[e], &frame, 2 * degree, &mut moments);
                 ElementBasis::new(frame, degree, &moments).ok_or(DgError::DegenerateElement { element: e, volume })
             })
             .collect();
@@ -192,7 +227,8 @@ impl DgMesh {
                 }
                 rest[3 * (e * nb + i)..3 * (e * nb + i) + 3].copy_from_slice(d.as_slice());
                 // F e_a = c_{1+a} / s = Σ_i d_i A_{i,1+a} / s.
-                rotation_gradients[e * nb + i] = Vector3::from_fn(|a, _| basis.a[(i, index(unit(a)))] / basis.frame.scale);
+                rotation_gradients[e * nb + i] =
+                    Vector3::from_fn(|a, _| basis.a[(i, index(unit(a)))] / basis.frame.scale);
             }
         }
 
@@ -201,7 +237,7 @@ impl DgMesh {
 
         let element_stiffness: Vec<DMatrix<Real>> = (0..mesh.num_elements)
             .into_par_iter()
-            .map(|e| element_stiffness(&mesh, e, &bases[e], &exps, &material))
+            .map(|e| element_stiffness(&mesh, &outward_faces[e], &bases[e], &exps, &material))
             .collect();
 
         let face_terms: Vec<Option<FaceTerms>> = (0..mesh.faces.len())
@@ -251,7 +287,15 @@ impl DgMesh {
         let mut dirichlet_load = vec![0.0; 3 * num_nodes];
         if let Some(dirichlet) = dirichlet {
             let scaled = WeakDirichletScaled { inner: dirichlet, penalty: this.penalty };
-            add_dirichlet_load(&this.mesh, &this.bases, &this.exps, &this.material, this.options.flux, &scaled, &mut dirichlet_load);
+            add_dirichlet_load(
+                &this.mesh,
+                &this.bases,
+                &this.exps,
+                &this.material,
+                this.options.flux,
+                &scaled,
+                &mut dirichlet_load,
+            );
         }
         this.dirichlet_load = dirichlet_load;
         Ok(this)
@@ -306,9 +350,9 @@ impl DgMesh {
     /// largest stiffness-to-mass ratio, which lifts the six rigid modes but not a negative
     /// eigenvalue of an insufficient penalty, whose size is that of the stiffness itself).
     fn stiffness_is_positive_definite(&self) -> bool {
+        use faer::Side;
         use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
         use faer::sparse::{SparseColMat, SymbolicSparseColMat};
-        use faer::Side;
         let pattern = AssemblyPattern::from_groups(self.num_nodes(), self.blocks.node_groups());
         let ranks = BlockRanks::new(&self.blocks, &pattern);
         let mut values = vec![0.0; pattern.nnz()];
@@ -333,7 +377,8 @@ impl DgMesh {
             }
         }
         let dim = pattern.dim();
-        let symbolic = SymbolicSparseColMat::new_checked(dim, dim, pattern.col_ptr().to_vec(), None, pattern.row_idx().to_vec());
+        let symbolic =
+            SymbolicSparseColMat::new_checked(dim, dim, pattern.col_ptr().to_vec(), None, pattern.row_idx().to_vec());
         let matrix = SparseColMat::new(symbolic, values);
         let Ok(symbolic_llt) = SymbolicLlt::try_new(matrix.symbolic(), Side::Lower) else {
             return false;
@@ -346,7 +391,8 @@ impl DgMesh {
         self.element_faces[e]
             .iter()
             .map(|&(f, reversed)| {
-                let mut pts: Vec<Point3<Real>> = self.mesh.faces[f as usize].polygon.iter().map(|&v| self.mesh.vertices[v as usize]).collect();
+                let mut pts: Vec<Point3<Real>> =
+                    self.mesh.faces[f as usize].polygon.iter().map(|&v| self.mesh.vertices[v as usize]).collect();
                 if reversed {
                     pts.reverse();
                 }
@@ -358,7 +404,8 @@ impl DgMesh {
     /// The element containing `p` (rest space), by a signed point-in-polyhedron test over the
     /// element's faces (winding number), nearest element centroid first.
     pub fn locate(&self, p: &Point3<Real>) -> Option<usize> {
-        let mut order: Vec<(Real, usize)> = self.bases.iter().enumerate().map(|(e, b)| ((b.frame.center - p).norm() / b.frame.scale, e)).collect();
+        let mut order: Vec<(Real, usize)> =
+            self.bases.iter().enumerate().map(|(e, b)| ((b.frame.center - p).norm() / b.frame.scale, e)).collect();
         order.sort_by(|a, b| a.0.total_cmp(&b.0));
         for &(distance, e) in order.iter().take(64) {
             if distance > 1.0 + 1e-9 {
@@ -397,12 +444,18 @@ fn winding_number(faces: &[Vec<Point3<Real>>], p: &Point3<Real>) -> Real {
 }
 
 /// Element stiffness `K_K[(i,a),(j,b)] = ∫ λ ∂_aψ_i ∂_bψ_j + μ (δ_ab ∇ψ_i·∇ψ_j + ∂_bψ_i ∂_aψ_j)`.
-fn element_stiffness(mesh: &PolyhedralMesh, e: usize, basis: &ElementBasis, exps: &[[u32; 3]], material: &Material) -> DMatrix<Real> {
+fn element_stiffness(
+    mesh: &PolyhedralMesh,
+    faces: &[ElementFace<'_>],
+    basis: &ElementBasis,
+    exps: &[[u32; 3]],
+    material: &Material,
+) -> DMatrix<Real> {
     let nb = exps.len();
     let degree = exps.iter().map(|x| x[0] + x[1] + x[2]).max().unwrap_or(0) as usize;
     let mut moments = Vec::new();
     if degree >= 1 {
-        element_moments(mesh, e, &basis.frame, 2 * degree - 2, &mut moments);
+        element_moments_from_faces(mesh, faces, &basis.frame, 2 * degree - 2, &mut moments);
     }
     let s2 = basis.frame.scale * basis.frame.scale;
     // S_cd[α][β] = ∫ ∂_c m_α ∂_d m_β (physical derivatives).
@@ -567,7 +620,10 @@ fn face_terms(
                     warped.push((k, frame as u32));
                 }
             }
-            let nodes = (0..nb as u32).map(|i| em as u32 * nb as u32 + i).chain((0..nb as u32).map(|i| ep as u32 * nb as u32 + i)).collect();
+            let nodes = (0..nb as u32)
+                .map(|i| em as u32 * nb as u32 + i)
+                .chain((0..nb as u32).map(|i| ep as u32 * nb as u32 + i))
+                .collect();
             Some(FaceTerms { nodes, warped, unit_penalty })
         }
         None => {
@@ -614,7 +670,12 @@ fn face_terms(
     }
 }
 
-fn build_blocks(num_nodes: usize, element_stiffness: &[DMatrix<Real>], faces: &[Option<FaceTerms>], penalty: Real) -> Result<BlockSet, BlockSetError> {
+fn build_blocks(
+    num_nodes: usize,
+    element_stiffness: &[DMatrix<Real>],
+    faces: &[Option<FaceTerms>],
+    penalty: Real,
+) -> Result<BlockSet, BlockSetError> {
     let mut builder = BlockSetBuilder::new();
     let nb = element_stiffness.first().map_or(0, |k| k.nrows() / 3);
     for (e, k) in element_stiffness.iter().enumerate() {
@@ -800,7 +861,8 @@ impl Discretization for DgMesh {
                 let mut grad = Matrix3::zeros();
                 for i in 0..nb {
                     let node = e * nb + i;
-                    let d = Vector3::new(displacement[3 * node], displacement[3 * node + 1], displacement[3 * node + 2]);
+                    let d =
+                        Vector3::new(displacement[3 * node], displacement[3 * node + 1], displacement[3 * node + 2]);
                     u += d * values[i];
                     grad += d * gradients[i].transpose();
                 }

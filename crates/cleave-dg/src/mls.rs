@@ -56,7 +56,8 @@ pub fn embed_mls(mesh: &DgMesh, points: &[Point3<Real>]) -> Result<Embedding, Em
         .enumerate()
         .map(|(index, p)| {
             let outside = || EmbedError::Outside { index, x: p.x, y: p.y, z: p.z };
-            let mut nearest: Vec<(Real, usize)> = used.iter().enumerate().map(|(k, &v)| ((poly.vertices[v as usize] - p).norm_squared(), k)).collect();
+            let mut nearest: Vec<(Real, usize)> =
+                used.iter().enumerate().map(|(k, &v)| ((poly.vertices[v as usize] - p).norm_squared(), k)).collect();
             let count = NEIGHBOURS.min(nearest.len());
             if count < 4 {
                 return Err(outside());

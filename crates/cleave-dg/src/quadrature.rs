@@ -23,7 +23,13 @@ fn unit_interval_rule() -> Vec<(Real, Real)> {
 
 /// Calls `visit(point, weight)` for a rule on the triangle `a, b, c` whose weights sum to the signed
 /// area relative to `normal` (positive when `a, b, c` is counter-clockwise about `normal`).
-pub fn triangle_rule(a: &Point3<Real>, b: &Point3<Real>, c: &Point3<Real>, normal: &Vector3<Real>, visit: &mut dyn FnMut(Point3<Real>, Real)) {
+pub fn triangle_rule(
+    a: &Point3<Real>,
+    b: &Point3<Real>,
+    c: &Point3<Real>,
+    normal: &Vector3<Real>,
+    visit: &mut dyn FnMut(Point3<Real>, Real),
+) {
     let double_area = (b - a).cross(&(c - a)).dot(normal);
     let rule = unit_interval_rule();
     for &(u, wu) in &rule {
@@ -39,7 +45,13 @@ pub fn triangle_rule(a: &Point3<Real>, b: &Point3<Real>, c: &Point3<Real>, norma
 
 /// Calls `visit(point, weight)` for a rule on the tetrahedron `a, b, c, d` whose weights sum to its
 /// signed volume `((b − a) × (c − a)) · (d − a) / 6`.
-pub fn tetrahedron_rule(a: &Point3<Real>, b: &Point3<Real>, c: &Point3<Real>, d: &Point3<Real>, visit: &mut dyn FnMut(Point3<Real>, Real)) {
+pub fn tetrahedron_rule(
+    a: &Point3<Real>,
+    b: &Point3<Real>,
+    c: &Point3<Real>,
+    d: &Point3<Real>,
+    visit: &mut dyn FnMut(Point3<Real>, Real),
+) {
     let six_volume = (b - a).cross(&(c - a)).dot(&(d - a));
     let rule = unit_interval_rule();
     for &(u, wu) in &rule {
@@ -64,7 +76,11 @@ pub fn polygon_rule(vertices: &[Point3<Real>], normal: &Vector3<Real>, visit: &m
 }
 
 /// A rule over a polyhedron given by its outward faces (each a vertex loop), cones from `apex`.
-pub fn polyhedron_rule<'a>(faces: impl Iterator<Item = Vec<Point3<Real>>> + 'a, apex: &Point3<Real>, visit: &mut dyn FnMut(Point3<Real>, Real)) {
+pub fn polyhedron_rule<'a>(
+    faces: impl Iterator<Item = Vec<Point3<Real>>> + 'a,
+    apex: &Point3<Real>,
+    visit: &mut dyn FnMut(Point3<Real>, Real),
+) {
     for face in faces {
         for k in 1..face.len().saturating_sub(1) {
             // Outward face (a, b, c) seen from inside: the tetrahedron (apex, a, b, c) is positive.
@@ -88,9 +104,13 @@ mod tests {
         let o = Point3::origin();
         for (a, b, c) in [(0, 0, 0), (1, 2, 0), (3, 2, 2), (7, 0, 0), (2, 2, 3), (1, 1, 5)] {
             let mut sum = 0.0;
-            tetrahedron_rule(&o, &Point3::new(1.0, 0.0, 0.0), &Point3::new(0.0, 1.0, 0.0), &Point3::new(0.0, 0.0, 1.0), &mut |p, w| {
-                sum += w * p.x.powi(a) * p.y.powi(b) * p.z.powi(c)
-            });
+            tetrahedron_rule(
+                &o,
+                &Point3::new(1.0, 0.0, 0.0),
+                &Point3::new(0.0, 1.0, 0.0),
+                &Point3::new(0.0, 0.0, 1.0),
+                &mut |p, w| sum += w * p.x.powi(a) * p.y.powi(b) * p.z.powi(c),
+            );
             let exact = simplex_moment(a, b, c);
             assert!((sum - exact).abs() < 1e-13 * exact.abs().max(1e-3), "{a}{b}{c}: {sum} vs {exact}");
         }
@@ -99,7 +119,8 @@ mod tests {
     #[test]
     fn non_convex_polygon_weights_integrate_exactly() {
         // An L-shaped hexagon (area 3) fanned from a reflex-free corner: ∫ x dA = 3.5 (by boxes).
-        let l = [(0.0, 0.0), (2.0, 0.0), (2.0, 1.0), (1.0, 1.0), (1.0, 2.0), (0.0, 2.0)].map(|(x, y)| Point3::new(x, y, 0.0));
+        let l = [(0.0, 0.0), (2.0, 0.0), (2.0, 1.0), (1.0, 1.0), (1.0, 2.0), (0.0, 2.0)]
+            .map(|(x, y)| Point3::new(x, y, 0.0));
         let (mut area, mut first) = (0.0, 0.0);
         polygon_rule(&l, &Vector3::z(), &mut |p, w| {
             area += w;

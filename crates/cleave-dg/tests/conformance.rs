@@ -24,7 +24,7 @@ fn grid() -> PolyhedralMesh {
 fn every_variant_passes_the_conformance_suite() {
     for flux in [Flux::BabuskaZlamal, Flux::InteriorPenalty] {
         for degree in [1, 2] {
-            let options = DgOptions { degree, flux, ..Default::default() };
+            let options = DgOptions::new(degree, flux);
             let dg = DgMesh::new(grid(), material(), options, None).unwrap();
             println!("{}: η = {} after {} doublings", dg.name(), dg.penalty(), dg.penalty_doublings());
             assert_all_pass(&conformance_suite(&dg));
@@ -92,7 +92,8 @@ fn gravity_load_is_the_weight_and_translation_dofs_match_a_moved_mesh() {
 }
 
 fn affine(p: &Point3<Real>) -> Vector3<Real> {
-    Matrix3::new(0.01, 0.02, -0.005, 0.003, -0.01, 0.004, 0.0, 0.006, 0.02) * p.coords + Vector3::new(0.001, -0.002, 0.003)
+    Matrix3::new(0.01, 0.02, -0.005, 0.003, -0.01, 0.004, 0.0, 0.006, 0.02) * p.coords
+        + Vector3::new(0.001, -0.002, 0.003)
 }
 
 #[test]
@@ -117,7 +118,7 @@ fn babuska_zlamal_is_not_consistent_on_the_patch_test() {
     let mut previous = Real::INFINITY;
     for penalty in [10.0, 40.0, 160.0] {
         let dirichlet = WeakDirichlet { on_boundary: &|_| true, data: &affine };
-        let options = DgOptions { degree: 1, flux: Flux::BabuskaZlamal, penalty, ..Default::default() };
+        let options = DgOptions { penalty, ..DgOptions::new(1, Flux::BabuskaZlamal) };
         let dg = DgMesh::new(grid(), material(), options, Some(&dirichlet)).unwrap();
         let solution = cleave_integrator::solve_static(&dg, dg.dirichlet_load(), &[]).unwrap();
         let errors = field_errors(&dg, &solution.displacement, 4, &|p| (affine(p), a));
@@ -132,7 +133,7 @@ fn babuska_zlamal_is_not_consistent_on_the_patch_test() {
 fn near_incompressible_penalty_doubling_reaches_a_positive_definite_matrix() {
     let material = Material::new(1e6, 0.499, 1000.0).unwrap();
     let dirichlet = WeakDirichlet { on_boundary: &|p| p.x < 0.3 + 1e-9, data: &|_| Vector3::zeros() };
-    let options = DgOptions { degree: 1, flux: Flux::InteriorPenalty, penalty: 0.25, ..Default::default() };
+    let options = DgOptions { penalty: 0.25, ..DgOptions::new(1, Flux::InteriorPenalty) };
     let dg = DgMesh::new(grid(), material, options, Some(&dirichlet)).unwrap();
     println!("ν = 0.499: η = {} after {} doublings", dg.penalty(), dg.penalty_doublings());
     assert!(dg.penalty_doublings() >= 1, "a low start must need doubling at ν = 0.499");
