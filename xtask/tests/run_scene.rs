@@ -39,11 +39,7 @@ fn stats(bytes: &[u8], lenient: bool) -> Vec<(f64, f64)> {
 fn bunny_falls_hits_the_ground_and_rests() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("bunny.mcap");
-    let status = xtask()
-        .args(["run", "scenes/bunny_drop_voxel.ron", "--quiet", "--out"])
-        .arg(&out)
-        .status()
-        .unwrap();
+    let status = xtask().args(["run", "scenes/bunny_drop_voxel.ron", "--quiet", "--out"]).arg(&out).status().unwrap();
     assert!(status.success());
     let stats = stats(&std::fs::read(&out).unwrap(), false);
     assert_eq!(stats.len(), 241, "initial state + 240 steps");
@@ -51,12 +47,51 @@ fn bunny_falls_hits_the_ground_and_rests() {
     let lowest = stats.iter().map(|s| s.0).fold(f64::MAX, f64::min);
     let peak_kinetic = stats.iter().map(|s| s.1).fold(0.0, f64::max);
     let (final_z, final_kinetic) = *stats.last().unwrap();
-    println!("min z start {start:.4}, lowest {lowest:.4}, final {final_z:.4}; kinetic peak {peak_kinetic:.3e}, final {final_kinetic:.3e}");
+    println!(
+        "min z start {start:.4}, lowest {lowest:.4}, final {final_z:.4}; kinetic peak {peak_kinetic:.3e}, final {final_kinetic:.3e}"
+    );
     assert!((start - 0.3).abs() < 0.01, "starts 0.3 m up: {start}");
     // free fall from 0.3 m: v = sqrt(2 g 0.3) = 2.43 m/s at impact
     assert!(lowest.abs() < 0.01, "reaches the ground: {lowest}");
     assert!(final_z.abs() < 0.01, "ends on the ground: {final_z}");
     assert!(final_kinetic < 1e-4 * peak_kinetic, "comes to rest: {final_kinetic} vs peak {peak_kinetic}");
+}
+
+#[test]
+fn dg_bunny_falls_hops_and_rests_with_its_mls_surface_recorded() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bunny_dg.mcap");
+    let status = xtask().args(["run", "scenes/bunny_drop_dg.ron", "--quiet", "--out"]).arg(&out).status().unwrap();
+    assert!(status.success());
+    let bytes = std::fs::read(&out).unwrap();
+    let stats = stats(&bytes, false);
+    assert_eq!(stats.len(), 601, "initial state + 600 steps");
+    let first_contact = stats.iter().position(|s| s.0 < 0.0).expect("reaches the ground");
+    let lowest = stats.iter().map(|s| s.0).fold(f64::MAX, f64::min);
+    let hop = stats[first_contact..].iter().map(|s| s.0).fold(f64::MIN, f64::max);
+    let peak_kinetic = stats.iter().map(|s| s.1).fold(0.0, f64::max);
+    let (final_z, final_kinetic) = *stats.last().unwrap();
+    println!(
+        "contact at step {first_contact}, lowest {lowest:.4}, hop {hop:.4}, final {final_z:.4}; kinetic peak {peak_kinetic:.3e}, final {final_kinetic:.3e}"
+    );
+    // free fall from 0.3 m takes sqrt(2·0.3/9.81) = 0.247 s = 59 steps of 1/240 s
+    assert!((57..=62).contains(&first_contact), "contact at step {first_contact}");
+    assert!(lowest.abs() < 0.01, "penetration {lowest}");
+    assert!(hop > 1e-3, "the bunny must leave the ground after impact: {hop}");
+    assert!(final_z.abs() < 0.002, "ends on the ground: {final_z}");
+    assert!(final_kinetic < 1e-3 * peak_kinetic, "comes to rest: {final_kinetic} vs peak {peak_kinetic}");
+    // The surface channel carries the MLS-embedded original surface: 1839 vertices per frame.
+    let mut surface_frames = 0;
+    for message in mcap::MessageStream::new(&bytes).unwrap() {
+        let message = message.unwrap();
+        if message.channel.topic == "/surface" {
+            let value: serde_json::Value = serde_json::from_slice(&message.data).unwrap();
+            let points = value["entities"][0]["triangles"][0]["points"].as_array().unwrap().len();
+            assert_eq!(points, 1839);
+            surface_frames += 1;
+        }
+    }
+    assert!(surface_frames >= 300, "{surface_frames} surface frames");
 }
 
 #[test]

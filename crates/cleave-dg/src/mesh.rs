@@ -401,21 +401,24 @@ impl DgMesh {
             .collect()
     }
 
-    /// The element containing `p` (rest space), by a signed point-in-polyhedron test over the
-    /// element's faces (winding number), nearest element centroid first.
+    /// The element containing `p` (rest space), by the generalized winding number of each nearby
+    /// element's faces: 1 inside, ½ on a face, ¼ on an edge, so a point on the boundary of the
+    /// solid still finds the element it touches (the best one above ⅛).
     pub fn locate(&self, p: &Point3<Real>) -> Option<usize> {
-        let mut order: Vec<(Real, usize)> =
-            self.bases.iter().enumerate().map(|(e, b)| ((b.frame.center - p).norm() / b.frame.scale, e)).collect();
-        order.sort_by(|a, b| a.0.total_cmp(&b.0));
-        for &(distance, e) in order.iter().take(64) {
-            if distance > 1.0 + 1e-9 {
-                break;
+        let mut best: Option<(Real, usize)> = None;
+        for (e, basis) in self.bases.iter().enumerate() {
+            if (basis.frame.center - p).norm() > basis.frame.scale * (1.0 + 1e-9) {
+                continue;
             }
-            if winding_number(&self.element_polygons(e), p) > 0.5 {
+            let w = winding_number(&self.element_polygons(e), p);
+            if w > 0.99 {
                 return Some(e);
             }
+            if w > 0.1 && best.is_none_or(|(b, _)| w > b) {
+                best = Some((w, e));
+            }
         }
-        None
+        best.map(|(_, e)| e)
     }
 }
 

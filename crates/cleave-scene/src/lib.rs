@@ -5,6 +5,6 @@ pub mod record;
 pub mod run;
 pub mod schema;
 
-pub use record::{Recorder, EVENTS_TOPIC, STATS_TOPIC, SURFACE_TOPIC};
-pub use run::{load_scene, BuildInfo, LoadedScene, SceneError, Simulation};
+pub use record::{EVENTS_TOPIC, Recorder, STATS_TOPIC, SURFACE_TOPIC};
+pub use run::{BuildInfo, LoadedScene, SceneError, Simulation, load_scene};
 pub use schema::Scene;

@@ -3,7 +3,7 @@
 //! disk every few frames so a killed run keeps what it computed; `finish` writes the summary.
 
 use cleave_core::{Point3, Real};
-use serde_json::{json, Value};
+use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
@@ -119,7 +119,8 @@ impl Recorder {
         let mut metadata = BTreeMap::new();
         metadata.insert("scene".to_string(), scene_name.to_string());
         let mut channel = |schema_name: &str, schema: &str, topic: &str| -> Result<u16, RecordError> {
-            let schema_id = writer.add_schema(schema_name, "jsonschema", schema.as_bytes()).map_err(|e| error(e.to_string()))?;
+            let schema_id =
+                writer.add_schema(schema_name, "jsonschema", schema.as_bytes()).map_err(|e| error(e.to_string()))?;
             writer.add_channel(schema_id, topic, "json", &metadata).map_err(|e| error(e.to_string()))
         };
         let surface = channel("foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA, SURFACE_TOPIC)?;
@@ -143,7 +144,8 @@ impl Recorder {
     }
 
     fn write(&mut self, channel: u16, time: Real, value: &Value) -> Result<(), RecordError> {
-        let bytes = serde_json::to_vec(value).map_err(|e| RecordError { path: self.path.clone(), message: e.to_string() })?;
+        let bytes =
+            serde_json::to_vec(value).map_err(|e| RecordError { path: self.path.clone(), message: e.to_string() })?;
         let header = mcap::records::MessageHeader {
             channel_id: channel,
             sequence: self.sequence,
@@ -151,8 +153,13 @@ impl Recorder {
             publish_time: nanoseconds(time),
         };
         self.sequence += 1;
-        let writer = self.writer.as_mut().ok_or_else(|| RecordError { path: self.path.clone(), message: "already finished".into() })?;
-        writer.write_to_known_channel(&header, &bytes).map_err(|e| RecordError { path: self.path.clone(), message: e.to_string() })
+        let writer = self
+            .writer
+            .as_mut()
+            .ok_or_else(|| RecordError { path: self.path.clone(), message: "already finished".into() })?;
+        writer
+            .write_to_known_channel(&header, &bytes)
+            .map_err(|e| RecordError { path: self.path.clone(), message: e.to_string() })
     }
 
     /// Records the deformed surface as one entity with one triangle list.

@@ -1,9 +1,12 @@
 //! Loading a scene file, building what it names, stepping it and recording every step.
 
 use crate::record::{RecordError, Recorder};
-use crate::schema::{ColliderSpec, DiscretizationSpec, EventSpec, Object, PinSpec, Scene, SolverSpec, Transform};
+use crate::schema::{
+    ColliderSpec, DiscretizationSpec, EventSpec, FluxSpec, Object, PinSpec, Scene, SolverSpec, Transform,
+};
 use cleave_core::{Discretization, Embedding, Point3, Real, Vector3};
-use cleave_geometry::TriangleMesh;
+use cleave_dg::{DgMesh, DgOptions, Flux, WeakDirichlet};
+use cleave_geometry::{PolyhedralMesh, TriangleMesh};
 use cleave_integrator::{Constraints, Integrator, PlaneCollider, Settings, Solver, StepError, StepReport};
 use cleave_voxel::VoxelMesh;
 use nalgebra::Rotation3;
@@ -138,6 +141,28 @@ fn transform_point(t: &Transform, p: &Point3<Real>) -> Point3<Real> {
     rotation * (p * t.scale) + Vector3::from(t.translation)
 }
 
+/// Cubes per axis of a box of cell size `h`, or why it is not a whole number of cells.
+fn box_dims(min: &[Real; 3], max: &[Real; 3], h: Real) -> Result<[usize; 3], String> {
+    let dims: Vec<usize> = (0..3).map(|a| ((max[a] - min[a]) / h).round().max(0.0) as usize).collect();
+    if dims.iter().any(|&d| d == 0)
+        || (0..3).any(|a| ((max[a] - min[a]) - dims[a] as Real * h).abs() > 1e-9 * h.max(1.0))
+    {
+        return Err(format!("the box {min:?}..{max:?} is not a whole number of cells of size {h}"));
+    }
+    Ok([dims[0], dims[1], dims[2]])
+}
+
+/// The boundary faces of a polyhedral mesh as fan triangles over its vertices, outward.
+fn polyhedral_boundary(mesh: &PolyhedralMesh) -> Vec<[u32; 3]> {
+    let mut triangles = Vec::new();
+    for face in mesh.faces.iter().filter(|f| f.outer.is_none()) {
+        for k in 1..face.polygon.len().saturating_sub(1) {
+            triangles.push([face.polygon[0], face.polygon[k], face.polygon[k + 1]]);
+        }
+    }
+    triangles
+}
+
 /// The boundary faces of a voxel mesh as triangles over its nodes, outward oriented.
 fn voxel_boundary(mesh: &VoxelMesh) -> Vec<[u32; 3]> {
     // For each axis and side: the four corners of that face (bit `axis` fixed), in cyclic order.
@@ -179,52 +204,165 @@ impl Simulation {
         let build_error = |message: String| SceneError::Build { path: path.clone(), message };
         let material = scene.material.0;
 
-        // The solid: a surface mesh (voxelized) or a box.
-        let (voxels, surface_vertices, surface_triangles) = match &scene.object {
+        // The solid: a closed surface mesh, or a box.
+        let surface = match &scene.object {
             Object::Mesh { path: mesh_path, transform } => {
                 let resolved = path.parent().unwrap_or(Path::new(".")).join(mesh_path);
-                let mesh_error = |message: String| SceneError::Mesh { scene: path.clone(), mesh: resolved.clone(), message };
+                let mesh_error =
+                    |message: String| SceneError::Mesh { scene: path.clone(), mesh: resolved.clone(), message };
                 let file = std::fs::File::open(&resolved).map_err(|e| mesh_error(format!("cannot open: {e}")))?;
-                let mesh = TriangleMesh::from_obj_reader(&mut std::io::BufReader::new(file)).map_err(|e| mesh_error(e.to_string()))?;
+                let mesh = TriangleMesh::from_obj_reader(&mut std::io::BufReader::new(file))
+                    .map_err(|e| mesh_error(e.to_string()))?;
                 mesh.validate_closed().map_err(|e| mesh_error(e.to_string()))?;
                 let mut mesh = mesh.transformed(|p| transform_point(transform, p));
                 if let Some(lowest) = transform.lowest_z {
                     let shift = lowest - mesh.aabb().0.z;
                     mesh = mesh.transformed(|p| p + Vector3::new(0.0, 0.0, shift));
                 }
-                let DiscretizationSpec::Voxel { cell_size, target_cubes } = &scene.discretization;
-                let h = match (cell_size, target_cubes) {
-                    (Some(h), None) => h.0,
-                    (None, Some(target)) if *target > 0 => cell_size_for(&mesh, *target).map_err(|e| mesh_error(e))?,
-                    _ => return Err(build_error("Voxel needs exactly one of `cell_size` and `target_cubes` (> 0)".into())),
-                };
-                let grid = cleave_geometry::voxelize(&mesh, h).map_err(|e| mesh_error(e.to_string()))?;
-                let voxels = VoxelMesh::new(material, grid.origin, grid.cell_size, &grid.cells).map_err(|e| build_error(e.to_string()))?;
-                (voxels, mesh.vertices, mesh.triangles)
+                Ok((mesh, resolved))
             }
-            Object::Box { min, max } => {
-                let DiscretizationSpec::Voxel { cell_size, .. } = &scene.discretization;
-                let h = cell_size.ok_or_else(|| build_error("a Box object needs Voxel(cell_size: ...)".into()))?.0;
-                let dims: Vec<usize> = (0..3).map(|a| ((max[a] - min[a]) / h).round() as usize).collect();
-                if dims.iter().any(|&d| d == 0) || (0..3).any(|a| ((max[a] - min[a]) - dims[a] as Real * h).abs() > 1e-9 * h.max(1.0)) {
-                    return Err(build_error(format!("the box {min:?}..{max:?} is not a whole number of cubes of size {h}")));
+            Object::Box { min, max } => Err((*min, *max)),
+        };
+        let pin_regions: Vec<([Real; 3], [Real; 3])> = scene
+            .pins
+            .iter()
+            .map(|pin| {
+                let PinSpec::Region { min, max } = pin;
+                (*min, *max)
+            })
+            .collect();
+        let in_region = |p: &[Real], (min, max): &([Real; 3], [Real; 3])| {
+            (0..3).all(|a| p[a] >= min[a] - 1e-9 && p[a] <= max[a] + 1e-9)
+        };
+        let mut constraints = Constraints::default();
+
+        let (discretization, element_count, element_size, surface_vertices, surface_triangles): (
+            Box<dyn Discretization>,
+            usize,
+            Real,
+            _,
+            _,
+        ) = match &scene.discretization {
+            DiscretizationSpec::Voxel { cell_size, target_cubes } => {
+                let (voxels, vertices, triangles) = match surface {
+                    Ok((mesh, resolved)) => {
+                        let mesh_error =
+                            |message: String| SceneError::Mesh { scene: path.clone(), mesh: resolved.clone(), message };
+                        let h = match (cell_size, target_cubes) {
+                            (Some(h), None) => h.0,
+                            (None, Some(target)) if *target > 0 => cell_size_for(&mesh, *target).map_err(mesh_error)?,
+                            _ => {
+                                return Err(build_error(
+                                    "Voxel needs exactly one of `cell_size` and `target_cubes` (> 0)".into(),
+                                ));
+                            }
+                        };
+                        let grid = cleave_geometry::voxelize(&mesh, h).map_err(|e| mesh_error(e.to_string()))?;
+                        let voxels = VoxelMesh::new(material, grid.origin, grid.cell_size, &grid.cells)
+                            .map_err(|e| build_error(e.to_string()))?;
+                        (voxels, mesh.vertices, mesh.triangles)
+                    }
+                    Err((min, max)) => {
+                        let h =
+                            cell_size.ok_or_else(|| build_error("a Box object needs Voxel(cell_size: ...)".into()))?.0;
+                        let dims = box_dims(&min, &max, h).map_err(&build_error)?;
+                        let voxels = VoxelMesh::from_box(material, Point3::from(min), h, dims)
+                            .map_err(|e| build_error(e.to_string()))?;
+                        let triangles = voxel_boundary(&voxels);
+                        let vertices: Vec<Point3<Real>> =
+                            voxels.rest_dofs().chunks(3).map(|p| Point3::new(p[0], p[1], p[2])).collect();
+                        (voxels, vertices, triangles)
+                    }
+                };
+                for (index, region) in pin_regions.iter().enumerate() {
+                    let before = constraints.pinned_dofs.len();
+                    for (node, p) in voxels.rest_dofs().chunks(3).enumerate() {
+                        if in_region(p, region) {
+                            constraints.pinned_dofs.extend(3 * node..3 * node + 3);
+                        }
+                    }
+                    if constraints.pinned_dofs.len() == before {
+                        return Err(build_error(format!(
+                            "pins[{index}]: the region {:?}..{:?} contains no node",
+                            region.0, region.1
+                        )));
+                    }
                 }
-                let voxels = VoxelMesh::from_box(material, Point3::from(*min), h, [dims[0], dims[1], dims[2]]).map_err(|e| build_error(e.to_string()))?;
-                let triangles = voxel_boundary(&voxels);
-                let vertices: Vec<Point3<Real>> = voxels.rest_dofs().chunks(3).map(|p| Point3::new(p[0], p[1], p[2])).collect();
-                (voxels, vertices, triangles)
+                let (count, h) = (voxels.num_cubes(), voxels.cell_size());
+                (Box::new(voxels), count, h, vertices, triangles)
+            }
+            DiscretizationSpec::Dg { cell_size, target_elements, degree, flux, penalty } => {
+                let (poly, h, vertices, triangles) = match surface {
+                    Ok((mesh, resolved)) => {
+                        let mesh_error =
+                            |message: String| SceneError::Mesh { scene: path.clone(), mesh: resolved.clone(), message };
+                        let h = match (cell_size, target_elements) {
+                            (Some(h), None) => h.0,
+                            (None, Some(target)) if *target > 0 => {
+                                slicing_cell_size_for(&mesh, *target).map_err(mesh_error)?
+                            }
+                            _ => {
+                                return Err(build_error(
+                                    "Dg needs exactly one of `cell_size` and `target_elements` (> 0)".into(),
+                                ));
+                            }
+                        };
+                        let slicing = cleave_geometry::hex_slice(&mesh, h).map_err(|e| mesh_error(e.to_string()))?;
+                        (slicing.mesh, h, mesh.vertices, mesh.triangles)
+                    }
+                    Err((min, max)) => {
+                        let h = cell_size.ok_or_else(|| build_error("a Box object needs Dg(cell_size: ...)".into()))?.0;
+                        let dims = box_dims(&min, &max, h).map_err(&build_error)?;
+                        let grid = PolyhedralMesh::grid(Point3::from(min), h, dims);
+                        let triangles = polyhedral_boundary(&grid);
+                        (grid.clone(), h, grid.vertices, triangles)
+                    }
+                };
+                let flux = match flux {
+                    FluxSpec::InteriorPenalty => Flux::InteriorPenalty,
+                    FluxSpec::BabuskaZlamal => Flux::BabuskaZlamal,
+                };
+                let mut options = DgOptions::new(*degree, flux);
+                if let Some(eta) = penalty {
+                    options.penalty = eta.0;
+                }
+                // Pins clamp the boundary faces whose centroid lies in a pin region (weak
+                // Dirichlet data u = 0: DG has no nodal values to hold).
+                for (index, region) in pin_regions.iter().enumerate() {
+                    let clamps_a_face = poly.faces.iter().enumerate().any(|(f, face)| {
+                        face.outer.is_none()
+                            && in_region(
+                                cleave_geometry::face_area_normal_centroid(&poly, f).2.coords.as_slice(),
+                                region,
+                            )
+                    });
+                    if !clamps_a_face {
+                        return Err(build_error(format!(
+                            "pins[{index}]: the region {:?}..{:?} contains no boundary face centroid",
+                            region.0, region.1
+                        )));
+                    }
+                }
+                let on_boundary =
+                    |p: &Point3<Real>| pin_regions.iter().any(|region| in_region(p.coords.as_slice(), region));
+                let zero = |_: &Point3<Real>| Vector3::zeros();
+                let dirichlet = WeakDirichlet { on_boundary: &on_boundary, data: &zero };
+                let dg = DgMesh::new(poly, material, options, (!pin_regions.is_empty()).then_some(&dirichlet))
+                    .map_err(|e| build_error(format!("discretization: {e}")))?;
+                let count = dg.num_elements();
+                (Box::new(dg), count, h, vertices, triangles)
             }
         };
         let info = BuildInfo {
-            backend: voxels.name().to_string(),
-            elements: voxels.num_cubes(),
-            dofs: 3 * voxels.num_nodes(),
+            backend: discretization.name().to_string(),
+            elements: element_count,
+            dofs: 3 * discretization.num_nodes(),
             surface_vertices: surface_vertices.len(),
             surface_triangles: surface_triangles.len(),
-            element_size: voxels.cell_size(),
+            element_size,
             seconds: 0.0,
         };
-        let mut discretization: Box<dyn Discretization> = Box::new(voxels);
+        let mut discretization = discretization;
 
         // Capabilities the timeline needs.
         for (index, event) in scene.timeline.iter().enumerate() {
@@ -241,24 +379,11 @@ impl Simulation {
         }
 
         let surface_points = discretization
-            .embed(&surface_vertices)
+            .embed_surface(&surface_vertices)
             .map_err(|e| build_error(format!("surface vertex cannot be embedded: {e}")))?;
         let probe_points: Vec<Point3<Real>> = scene.probes.iter().map(|p| Point3::from(p.position)).collect();
         let probes = discretization.embed(&probe_points).map_err(|e| build_error(format!("probe: {e}")))?;
 
-        let mut constraints = Constraints::default();
-        for (index, pin) in scene.pins.iter().enumerate() {
-            let PinSpec::Region { min, max } = pin;
-            let before = constraints.pinned_dofs.len();
-            for (node, p) in discretization.rest_dofs().chunks(3).enumerate() {
-                if (0..3).all(|a| p[a] >= min[a] - 1e-9 && p[a] <= max[a] + 1e-9) {
-                    constraints.pinned_dofs.extend(3 * node..3 * node + 3);
-                }
-            }
-            if constraints.pinned_dofs.len() == before {
-                return Err(build_error(format!("pins[{index}]: the region {min:?}..{max:?} contains no node")));
-            }
-        }
         for collider in &scene.colliders {
             let ColliderSpec::Plane { point, normal, stiffness, damping } = collider;
             constraints.planes.push(PlaneCollider {
@@ -437,6 +562,25 @@ fn cell_size_for(mesh: &TriangleMesh, target: usize) -> Result<Real, String> {
         let count = cleave_geometry::voxelize(mesh, h).map_err(|e| e.to_string())?.cells.len();
         let ratio = count as Real / target as Real;
         if (ratio - 1.0).abs() < 0.05 {
+            break;
+        }
+        h *= ratio.cbrt();
+    }
+    Ok(h)
+}
+
+/// The slicing cell edge giving about `target` DG elements (a few slicings, refining `h` by the
+/// cube root of the count ratio).
+fn slicing_cell_size_for(mesh: &TriangleMesh, target: usize) -> Result<Real, String> {
+    let volume = mesh.signed_volume();
+    if volume.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        return Err(format!("enclosed volume is {volume}, cannot size elements"));
+    }
+    let mut h = (volume / target as Real).cbrt();
+    for _ in 0..4 {
+        let count = cleave_geometry::hex_slice(mesh, h).map_err(|e| e.to_string())?.mesh.num_elements;
+        let ratio = count as Real / target as Real;
+        if (ratio - 1.0).abs() < 0.1 {
             break;
         }
         h *= ratio.cbrt();

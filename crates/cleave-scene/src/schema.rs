@@ -155,6 +155,39 @@ pub enum DiscretizationSpec {
         #[serde(default)]
         target_cubes: Option<usize>,
     },
+    /// Discontinuous Galerkin FEM on polyhedra (kaufmann2008): a mesh is cut into elements by
+    /// hexahedral slicing, a box into a grid of cubes.
+    Dg {
+        /// Slicing grid cell edge [m]; exactly one of `cell_size` and `target_elements` for meshes.
+        #[serde(default)]
+        cell_size: Option<Positive>,
+        /// Pick the cell edge that gives about this many elements.
+        #[serde(default)]
+        target_elements: Option<usize>,
+        /// Polynomial degree, 1 or 2 (default 1).
+        #[serde(default = "one_usize")]
+        degree: usize,
+        /// Interior-face flux (default `InteriorPenalty`).
+        #[serde(default)]
+        flux: FluxSpec,
+        /// Starting penalty η (default: 1 for IP, 10 for BZ); doubled until positive definite.
+        #[serde(default)]
+        penalty: Option<Positive>,
+    },
+}
+
+fn one_usize() -> usize {
+    1
+}
+
+/// The DG interior-face flux.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+pub enum FluxSpec {
+    /// Symmetric interior penalty (consistent).
+    #[default]
+    InteriorPenalty,
+    /// Babuška–Zlámal, penalty only (not consistent).
+    BabuskaZlamal,
 }
 
 /// Linear solver.
@@ -187,7 +220,11 @@ fn default_iterations() -> usize {
 
 impl Default for SolverSpec {
     fn default() -> Self {
-        Self::ConjugateGradient { tolerance: default_tolerance(), max_iterations: default_iterations(), assembled: false }
+        Self::ConjugateGradient {
+            tolerance: default_tolerance(),
+            max_iterations: default_iterations(),
+            assembled: false,
+        }
     }
 }
 

@@ -104,7 +104,10 @@ fn open_mesh_names_the_boundary_edge() {
 
 #[test]
 fn a_cut_on_a_backend_that_cannot_cut_is_a_clear_build_error() {
-    let text = GOOD.replace("    steps: 3,\n", "    steps: 3,\n    timeline: [Cut(time: 0.1, point: (0.5, 0.0, 0.0), normal: (1.0, 0.0, 0.0))],\n");
+    let text = GOOD.replace(
+        "    steps: 3,\n",
+        "    steps: 3,\n    timeline: [Cut(time: 0.1, point: (0.5, 0.0, 0.0), normal: (1.0, 0.0, 0.0))],\n",
+    );
     let loaded = parse_scene(Path::new("test.ron"), &text).unwrap();
     let message = Simulation::build(&loaded, None).err().expect("must fail").to_string();
     assert!(message.contains("timeline[0]") && message.contains("voxel"), "{message}");

@@ -1,8 +1,8 @@
 //! Recordings: a finished run is a valid MCAP with the three channels; a run that dies without
 //! finishing still yields every flushed frame to a lenient reader.
 
-use cleave_scene::run::parse_scene;
 use cleave_scene::Simulation;
+use cleave_scene::run::parse_scene;
 use mcap::read::Options;
 use std::path::Path;
 
