@@ -279,8 +279,8 @@ pub enum GeometryError {
         limit: usize,
     },
     /// Hexahedral slicing found no grid shift that keeps every surface vertex, edge crossing
-    /// and triangle–grid-line crossing away from the grid planes (see
-    /// [`GRID_MARGIN`](crate::GRID_MARGIN)).
+    /// and triangle–grid-line crossing away from the grid planes and leaves no sliver face
+    /// (see [`GRID_MARGIN`](crate::GRID_MARGIN) and [`MIN_FACE_AREA`](crate::MIN_FACE_AREA)).
     #[error("hexahedral slicing at cell size {cell_size}: no generic grid shift in {attempts} attempts")]
     NoGenericGridShift {
         /// The requested cell size.

@@ -24,6 +24,11 @@ pub const MAX_SLICE_CELLS: u64 = 20_000_000;
 /// never has a vertex closer than this to a cell edge or corner it does not contain.
 pub const GRID_MARGIN: f64 = 1e-9;
 
+/// Smallest face area, in cell sizes squared, [`hex_slice`] emits: a slicing with a smaller
+/// face (a sliver from a near-coincidence the genericity margin let through) is redone with
+/// the next grid shift. It is [`GRID_MARGIN`] squared.
+pub const MIN_FACE_AREA: f64 = GRID_MARGIN * GRID_MARGIN;
+
 /// Number of grid shifts tried before giving up with [`GeometryError::NoGenericGridShift`].
 const SHIFT_ATTEMPTS: usize = 16;
 
@@ -64,12 +69,15 @@ pub struct HexSlicing {
 /// in [`HexSlicing::origin`]. The grid covers the bounding box with a margin of at least
 /// `(1 − shift)·h` below and a positive one above, so its outer corners are outside.
 ///
+/// Faces are simple planar polygons of area at least [`MIN_FACE_AREA`]`·h²`. A cell-face
+/// region with holes (a tube of outside passing through a face square without touching its
+/// edges) is bridged and cut into triangles.
+///
 /// Errors: the error of [`TriangleMesh::validate_closed`];
 /// [`GeometryError::InvalidCellSize`]; [`GeometryError::GridTooLarge`] beyond
-/// [`MAX_SLICE_CELLS`]; [`GeometryError::NoGenericGridShift`] if every shift is degenerate;
-/// [`GeometryError::SliceInconsistent`] if the surface intersects itself, or if a cell-face
-/// region would have a hole (a tube of outside passing through a face square without touching
-/// its edges), which this implementation does not split into simple polygons.
+/// [`MAX_SLICE_CELLS`]; [`GeometryError::NoGenericGridShift`] if every shift is degenerate or
+/// leaves a sliver; [`GeometryError::SliceInconsistent`] if the pieces do not fit together,
+/// which happens for self-intersecting surfaces.
 pub fn hex_slice(surface: &TriangleMesh, cell_size: f64) -> Result<HexSlicing, GeometryError> {
     surface.validate_closed()?;
     let h = cell_size;
@@ -77,12 +85,7 @@ pub fn hex_slice(surface: &TriangleMesh, cell_size: f64) -> Result<HexSlicing, G
         return Err(GeometryError::InvalidCellSize { cell_size });
     }
     let (lo, hi) = surface.aabb();
-    let mut attempt = 0;
-    let (slicer, dims_f) = loop {
-        if attempt == SHIFT_ATTEMPTS {
-            return Err(GeometryError::NoGenericGridShift { cell_size, attempts: SHIFT_ATTEMPTS });
-        }
-        attempt += 1;
+    for attempt in 1..=SHIFT_ATTEMPTS {
         let shift: [f64; 3] = std::array::from_fn(|d| (SHIFT_STEPS[d] * attempt as f64).fract());
         let origin = Point3::from(std::array::from_fn(|d| h * ((lo[d] / h).floor() - 1.0 + shift[d])));
         let dims_f: [f64; 3] = std::array::from_fn(|d| ((hi[d] - origin[d]) / h).floor() + 1.0);
@@ -90,12 +93,27 @@ pub fn hex_slice(surface: &TriangleMesh, cell_size: f64) -> Result<HexSlicing, G
         if cells.is_nan() || cells > MAX_SLICE_CELLS as f64 {
             return Err(GeometryError::GridTooLarge { dims: dims_f, cells, limit: MAX_SLICE_CELLS });
         }
-        if let Some(slicer) = Slicer::new(surface, origin, h) {
-            break (slicer, dims_f);
+        let Some(slicer) = Slicer::new(surface, origin, h) else { continue };
+        let grid = voxelize_on_grid(surface, origin, h, dims_f)?;
+        let slicing = slicer.slice(&grid)?;
+        if smallest_face_area(&slicing.mesh) >= MIN_FACE_AREA * h * h {
+            return Ok(slicing);
         }
-    };
-    let grid = voxelize_on_grid(surface, slicer.origin, h, dims_f)?;
-    slicer.slice(&grid)
+    }
+    Err(GeometryError::NoGenericGridShift { cell_size, attempts: SHIFT_ATTEMPTS })
+}
+
+/// Area of the smallest face (Newell, about its first vertex).
+fn smallest_face_area(mesh: &PolyhedralMesh) -> f64 {
+    mesh.faces
+        .iter()
+        .map(|f| {
+            let p = |k: usize| mesh.vertices[f.polygon[k] as usize];
+            let area: Vector3<f64> =
+                (1..f.polygon.len().saturating_sub(1)).map(|k| (p(k) - p(0)).cross(&(p(k + 1) - p(0)))).sum();
+            area.norm() / 2.0
+        })
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// A vertex of the sliced mesh, named by the features whose intersection it is. Every vertex
@@ -486,7 +504,7 @@ impl<'a> Slicer<'a> {
         }
         // Closed loops inside the square.
         let mut islands = Vec::new();
-        let mut holes = 0;
+        let mut holes = Vec::new();
         for s in 0..segments.len() {
             if used[s] {
                 continue;
@@ -512,7 +530,7 @@ impl<'a> Slicer<'a> {
             if area2 > 0.0 {
                 islands.push(lp);
             } else {
-                holes += 1;
+                holes.push(lp);
             }
         }
         let mut regions = Vec::new();
@@ -558,14 +576,44 @@ impl<'a> Slicer<'a> {
                 regions.push(polygon);
             }
         }
-        if holes > 0 {
-            return Err(inconsistent(
-                cell_b,
-                format!("face on axis {d} has a region with {holes} hole(s), which is not supported"),
-            ));
-        }
         regions.extend(islands);
-        Ok(regions)
+        if holes.is_empty() {
+            return Ok(regions);
+        }
+        // A region with holes is not a simple polygon: bridge its holes into it and cut the
+        // result into triangles (faces with the same two elements; no new vertices, so the
+        // surface pieces need no change).
+        let with_points = |poly: &[Key]| -> Vec<(Key, Pt)> {
+            poly.iter()
+                .map(|&k| {
+                    let x = self.local_position(k);
+                    (k, [x[u], x[w]])
+                })
+                .collect()
+        };
+        let regions: Vec<Vec<(Key, Pt)>> = regions.iter().map(|r| with_points(r)).collect();
+        let mut region_holes: Vec<Vec<Vec<(Key, Pt)>>> = vec![Vec::new(); regions.len()];
+        for hole in &holes {
+            let hole = with_points(hole);
+            let owner = (0..regions.len())
+                .filter(|&r| point_in_polygon(hole[0].1, &regions[r]))
+                .min_by(|&a, &b| twice_area(&regions[a]).total_cmp(&twice_area(&regions[b])))
+                .ok_or_else(|| inconsistent(cell_b, format!("face on axis {d}: hole outside every region")))?;
+            region_holes[owner].push(hole);
+        }
+        let mut out = Vec::new();
+        for (region, hs) in regions.into_iter().zip(region_holes) {
+            if hs.is_empty() {
+                out.push(region.iter().map(|v| v.0).collect());
+                continue;
+            }
+            let merged = bridge_holes(region, hs)
+                .ok_or_else(|| inconsistent(cell_b, format!("face on axis {d}: no bridge to a hole")))?;
+            out.extend(ear_clip(merged).ok_or_else(|| {
+                inconsistent(cell_b, format!("face on axis {d}: region with holes not triangulated"))
+            })?);
+        }
+        Ok(out)
     }
 
     /// Slices on the voxelized grid.
@@ -721,6 +769,118 @@ impl<'a> Slicer<'a> {
             cell_size: self.h,
         })
     }
+}
+
+/// A point in the plane of a grid face, in the face's `(u, w)` grid coordinates.
+type Pt = [f64; 2];
+
+/// Twice the signed area of triangle `(o, a, b)`.
+fn cross(o: Pt, a: Pt, b: Pt) -> f64 {
+    (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+}
+
+/// Twice the signed area of a polygon.
+fn twice_area(poly: &[(Key, Pt)]) -> f64 {
+    (0..poly.len()).map(|k| cross([0.0, 0.0], poly[k].1, poly[(k + 1) % poly.len()].1)).sum()
+}
+
+/// Even–odd point-in-polygon test (a doubled bridge edge crosses the ray twice, so it also
+/// works on bridged polygons).
+fn point_in_polygon(q: Pt, poly: &[(Key, Pt)]) -> bool {
+    let mut inside = false;
+    for k in 0..poly.len() {
+        let (a, b) = (poly[k].1, poly[(k + 1) % poly.len()].1);
+        if (a[1] > q[1]) != (b[1] > q[1]) && q[0] < a[0] + (q[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]) {
+            inside = !inside;
+        }
+    }
+    inside
+}
+
+/// Whether the closed segments `ab` and `cd` meet.
+fn segments_meet(a: Pt, b: Pt, c: Pt, d: Pt) -> bool {
+    let (o1, o2, o3, o4) = (cross(a, b, c), cross(a, b, d), cross(c, d, a), cross(c, d, b));
+    let within = |p: Pt, q: Pt, r: Pt| {
+        r[0] >= p[0].min(q[0]) && r[0] <= p[0].max(q[0]) && r[1] >= p[1].min(q[1]) && r[1] <= p[1].max(q[1])
+    };
+    (o1 * o2 < 0.0 && o3 * o4 < 0.0)
+        || (o1 == 0.0 && within(a, b, c))
+        || (o2 == 0.0 && within(a, b, d))
+        || (o3 == 0.0 && within(c, d, a))
+        || (o4 == 0.0 && within(c, d, b))
+}
+
+/// Joins clockwise `holes` to the counter-clockwise `outer` polygon by bridges (doubled
+/// edges between mutually visible vertices, shortest first), giving one weakly simple
+/// polygon; `None` if some hole has no visible vertex.
+fn bridge_holes(mut outer: Vec<(Key, Pt)>, mut holes: Vec<Vec<(Key, Pt)>>) -> Option<Vec<(Key, Pt)>> {
+    while let Some(hole) = holes.pop() {
+        let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
+        for (i, m) in hole.iter().enumerate() {
+            for (j, v) in outer.iter().enumerate() {
+                pairs.push(((m.1[0] - v.1[0]).powi(2) + (m.1[1] - v.1[1]).powi(2), i, j));
+            }
+        }
+        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let rings = |outer: &[(Key, Pt)]| {
+            let mut all: Vec<Vec<(Key, Pt)>> = vec![outer.to_vec(), hole.clone()];
+            all.extend(holes.iter().cloned());
+            all
+        };
+        let all = rings(&outer);
+        let visible = |m: (Key, Pt), v: (Key, Pt)| {
+            let blocked = all.iter().any(|ring| {
+                (0..ring.len()).any(|k| {
+                    let (a, b) = (ring[k], ring[(k + 1) % ring.len()]);
+                    let incident = [a.0, b.0].iter().any(|&x| x == m.0 || x == v.0);
+                    !incident && segments_meet(m.1, v.1, a.1, b.1)
+                })
+            });
+            let mid = [(m.1[0] + v.1[0]) / 2.0, (m.1[1] + v.1[1]) / 2.0];
+            !blocked && point_in_polygon(mid, &outer) && all[1..].iter().all(|h| !point_in_polygon(mid, h))
+        };
+        let &(_, i, j) = pairs.iter().find(|&&(_, i, j)| visible(hole[i], outer[j]))?;
+        let mut merged = Vec::with_capacity(outer.len() + hole.len() + 2);
+        merged.extend_from_slice(&outer[..=j]);
+        merged.extend((0..=hole.len()).map(|k| hole[(i + k) % hole.len()]));
+        merged.extend_from_slice(&outer[j..]);
+        outer = merged;
+    }
+    Some(outer)
+}
+
+/// Ear clipping of a (weakly) simple counter-clockwise polygon into triangles of positive
+/// area; `None` if no ear is found.
+fn ear_clip(mut poly: Vec<(Key, Pt)>) -> Option<Vec<KeyPolygon>> {
+    // Strictly convex corners only: collinear vertices (along the square's edges, or crossings
+    // of a flat wall's diagonal) must not become zero-area triangles, and rounding makes their
+    // cross products ~1e-16, not 0. In grid units: far above rounding, far below real ears.
+    const MIN_TWICE_AREA: f64 = GRID_MARGIN;
+    let mut out = Vec::with_capacity(poly.len());
+    while poly.len() > 3 {
+        let n = poly.len();
+        let ear = (0..n).find(|&i| {
+            let (a, b, c) = (poly[(i + n - 1) % n], poly[i], poly[(i + 1) % n]);
+            if cross(a.1, b.1, c.1) <= MIN_TWICE_AREA {
+                return false;
+            }
+            !poly.iter().any(|p| {
+                p.0 != a.0
+                    && p.0 != b.0
+                    && p.0 != c.0
+                    && cross(a.1, b.1, p.1) >= 0.0
+                    && cross(b.1, c.1, p.1) >= 0.0
+                    && cross(c.1, a.1, p.1) >= 0.0
+            })
+        })?;
+        out.push(vec![poly[(ear + n - 1) % n].0, poly[ear].0, poly[(ear + 1) % n].0]);
+        poly.remove(ear);
+    }
+    if cross(poly[0].1, poly[1].1, poly[2].1) <= MIN_TWICE_AREA {
+        return None;
+    }
+    out.push(poly.iter().map(|v| v.0).collect());
+    Some(out)
 }
 
 /// Union–find root with path halving.

@@ -34,7 +34,7 @@ mod validate;
 mod voxelize;
 
 pub use error::GeometryError;
-pub use hex_slice::{GRID_MARGIN, HexSlicing, MAX_SLICE_CELLS, hex_slice};
+pub use hex_slice::{GRID_MARGIN, HexSlicing, MAX_SLICE_CELLS, MIN_FACE_AREA, hex_slice};
 pub use inside::InsideTester;
 pub use mesh::TriangleMesh;
 pub use moments::{

@@ -7,7 +7,9 @@ mod common;
 use std::collections::{HashMap, HashSet};
 use std::time::Instant;
 
-use cleave_geometry::{GeometryError, HexSlicing, PolyhedralMesh, TriangleMesh, hex_slice, triangle_aabb_overlap};
+use cleave_geometry::{
+    GeometryError, HexSlicing, MIN_FACE_AREA, PolyhedralMesh, TriangleMesh, hex_slice, triangle_aabb_overlap,
+};
 use common::{box_mesh, bunny, icosphere};
 use nalgebra::{Point3, Vector3};
 
@@ -38,13 +40,11 @@ fn element_volumes(mesh: &PolyhedralMesh) -> Vec<f64> {
         .collect()
 }
 
-/// Newell area vector of a polygon.
+/// Newell area vector of a polygon (about its first vertex, so small faces far from the
+/// origin keep their precision).
 fn area_vector(vertices: &[Point3<f64>], polygon: &[u32]) -> Vector3<f64> {
-    let n = polygon.len();
-    (0..n)
-        .map(|k| vertices[polygon[k] as usize].coords.cross(&vertices[polygon[(k + 1) % n] as usize].coords))
-        .sum::<Vector3<f64>>()
-        / 2.0
+    let p = |k: usize| vertices[polygon[k] as usize] - vertices[polygon[0] as usize];
+    (1..polygon.len() - 1).map(|k| p(k).cross(&p(k + 1))).sum::<Vector3<f64>>() / 2.0
 }
 
 /// Asserts every element boundary is closed and consistently oriented: each directed edge of
@@ -60,6 +60,43 @@ fn assert_closed_oriented(mesh: &PolyhedralMesh) {
         }
         for &(a, b) in &edges {
             assert!(edges.contains(&(b, a)), "element {e}: edge ({a}, {b}) has no reverse");
+        }
+    }
+}
+
+/// Asserts a face is planar (within 1e-12 h of its Newell plane) and simple (no two
+/// non-adjacent edges meet, in the projection along the normal's largest component).
+fn assert_planar_simple(name: &str, vertices: &[Point3<f64>], polygon: &[u32], normal: Vector3<f64>, h: f64) {
+    let n = polygon.len();
+    let unit = normal.normalize();
+    let p = |k: usize| vertices[polygon[k % n] as usize];
+    for k in 0..n {
+        assert!((p(k) - p(0)).dot(&unit).abs() < 1e-12 * h, "{name}: face {polygon:?} is not planar");
+    }
+    let c = normal.iamax();
+    let (a, b) = ((c + 1) % 3, (c + 2) % 3);
+    let q = |k: usize| [p(k)[a], p(k)[b]];
+    let orient = |o: [f64; 2], x: [f64; 2], y: [f64; 2]| (x[0] - o[0]) * (y[1] - o[1]) - (x[1] - o[1]) * (y[0] - o[0]);
+    for i in 0..n {
+        for j in i + 2..n {
+            if i == 0 && j == n - 1 {
+                continue;
+            }
+            let (s0, s1, t0, t1) = (q(i), q(i + 1), q(j), q(j + 1));
+            let (o1, o2) = (orient(s0, s1, t0), orient(s0, s1, t1));
+            let (o3, o4) = (orient(t0, t1, s0), orient(t0, t1, s1));
+            // Collinear within rounding: compare the intervals along the line instead.
+            let scale = 1e-12 * h * h;
+            let collinear = [o1, o2, o3, o4].iter().all(|o| o.abs() <= scale);
+            let crosses = if collinear {
+                let k = if (s1[0] - s0[0]).abs() > (s1[1] - s0[1]).abs() { 0 } else { 1 };
+                let (a0, a1) = (s0[k].min(s1[k]), s0[k].max(s1[k]));
+                let (b0, b1) = (t0[k].min(t1[k]), t0[k].max(t1[k]));
+                a0 <= b1 && b0 <= a1
+            } else {
+                o1 * o2 < 0.0 && o3 * o4 < 0.0
+            };
+            assert!(!crosses, "{name}: face {polygon:?} is not simple (edges {i} and {j} meet)");
         }
     }
 }
@@ -82,8 +119,10 @@ fn check_slicing(name: &str, surface: &TriangleMesh, s: &HexSlicing) -> (f64, f6
         assert!(n >= 3);
         let distinct: HashSet<u32> = face.polygon.iter().copied().collect();
         assert_eq!(distinct.len(), n, "{name}: face repeats a vertex: {:?}", face.polygon);
-        let area = area_vector(&mesh.vertices, &face.polygon).norm();
+        let normal = area_vector(&mesh.vertices, &face.polygon);
+        let area = normal.norm();
         min_area = min_area.min(area);
+        assert_planar_simple(name, &mesh.vertices, &face.polygon, normal, h);
         match face.outer {
             None => boundary_area += area,
             Some(o) => {
@@ -111,7 +150,7 @@ fn check_slicing(name: &str, surface: &TriangleMesh, s: &HexSlicing) -> (f64, f6
         min_area / (h * h),
         min_volume / (h * h * h),
     );
-    assert!(min_area > 0.0, "{name}: degenerate face");
+    assert!(min_area >= MIN_FACE_AREA * h * h, "{name}: sliver face of area {min_area:e}");
     (total, boundary_area)
 }
 
@@ -287,4 +326,92 @@ fn errors_for_bad_input() {
     let mut open = surface.clone();
     open.triangles.pop();
     assert_eq!(hex_slice(&open, 0.3).unwrap_err(), open.validate_closed().unwrap_err());
+}
+
+/// The block [0, 5] × [0, 5] × [0, 3] with the square tunnel [2.5, 3] × [1.8, 2.5] along z.
+fn tunnel_block() -> TriangleMesh {
+    let outer = [[0.0, 0.0], [5.0, 0.0], [5.0, 5.0], [0.0, 5.0]];
+    let inner = [[2.5, 1.8], [3.0, 1.8], [3.0, 2.5], [2.5, 2.5]];
+    let mut vertices = Vec::new();
+    for z in [0.0, 3.0] {
+        vertices.extend(outer.iter().chain(&inner).map(|&[x, y]| Point3::new(x, y, z)));
+    }
+    let (o, i, top) = (|k: u32| k % 4, |k: u32| 4 + k % 4, 8);
+    let mut triangles = Vec::new();
+    for k in 0..4 {
+        // Top cap counter-clockwise in (x, y) (normal +z), bottom reversed.
+        for [a, b, c] in [[o(k), o(k + 1), i(k + 1)], [o(k), i(k + 1), i(k)]] {
+            triangles.push([a + top, b + top, c + top]);
+            triangles.push([a, c, b]);
+        }
+        // Outer walls face away from the block's axis, tunnel walls into the tunnel.
+        let (p, q) = (o(k), o(k + 1));
+        triangles.extend([[p, q, q + top], [p, q + top, p + top]]);
+        let (p, q) = (i(k), i(k + 1));
+        triangles.extend([[p, q + top, q], [p, p + top, q + top]]);
+    }
+    TriangleMesh::new(vertices, triangles)
+}
+
+#[test]
+fn tunnel_through_a_face_square_splits_the_region() {
+    let surface = tunnel_block();
+    surface.validate_closed().expect("the tunnel block is closed and outward");
+    let h = 2.5;
+    let s = check_volume_and_area("tunnel", &surface, h);
+    // Setup: some grid face square contains the tunnel's cross-section strictly, on a plane
+    // crossing the block, so that face's region has a hole.
+    let cell_lo = |d: usize, x: f64| s.origin[d] + ((x - s.origin[d]) / h).floor() * h;
+    assert!(cell_lo(0, 2.5) < 2.5 && cell_lo(0, 2.5) + h > 3.0 && cell_lo(1, 1.8) < 1.8 && cell_lo(1, 1.8) + h > 2.5);
+    assert!(cell_lo(2, 3.0) > 0.0, "a z grid plane crosses the block");
+    // Every element is its cell's piece of the block minus the tunnel: boxes, exactly.
+    let volumes = element_volumes(&s.mesh);
+    let overlap = |cell: [i32; 3], lo: [f64; 3], hi: [f64; 3]| -> f64 {
+        (0..3)
+            .map(|d| {
+                let a = s.origin[d] + f64::from(cell[d]) * h;
+                (hi[d].min(a + h) - lo[d].max(a)).max(0.0)
+            })
+            .product()
+    };
+    for (e, &cell) in s.element_cells.iter().enumerate() {
+        let expected = overlap(cell, [0.0; 3], [5.0, 5.0, 3.0]) - overlap(cell, [2.5, 1.8, 0.0], [3.0, 2.5, 3.0]);
+        assert_rel("tunnel", "element volume", volumes[e], expected, 1e-12);
+    }
+    let triangles_on_planes = s.mesh.faces.iter().filter(|f| f.outer.is_some() && f.polygon.len() == 3).count();
+    println!("tunnel: {} elements, {triangles_on_planes} triangular interior faces", s.mesh.num_elements);
+    assert!(triangles_on_planes > 0, "the holed region was not cut into triangles");
+}
+
+#[test]
+fn degenerate_first_shift_is_replaced() {
+    // A box whose far x face lies exactly on a plane of the first shifted grid (attempt 1
+    // shifts x by frac(φ − 1) cells), so slicing must move on to the next shift.
+    let h = 0.25;
+    let first_origin_x = h * ((0.0f64 / h).floor() - 1.0 + 0.618_033_988_749_894_9);
+    let far_x = first_origin_x + 5.0 * h;
+    let surface = box_mesh([0.0; 3], [far_x, 1.0, 1.0]);
+    let s = check_volume_and_area("box on shifted plane", &surface, h);
+    assert!((s.origin.x - first_origin_x).abs() > 1e-3 * h, "the degenerate first shift was kept");
+    for v in &surface.vertices {
+        for d in 0..3 {
+            let t = (v[d] - s.origin[d]) / h;
+            assert!((t - t.round()).abs() >= 1e-9, "vertex {v:?} within 1e-9 h of a grid plane");
+        }
+    }
+}
+
+#[test]
+fn bunny_sweep_of_cell_sizes() {
+    // Many grids, many chances for near-coincidences: every slicing must pass the structural
+    // checks and conserve the volume.
+    let surface = bunny();
+    let mut h = 0.45;
+    while h < 4.0 {
+        let s = hex_slice(&surface, h).expect("slicing succeeds");
+        let (volume, area) = check_slicing("bunny sweep", &surface, &s);
+        assert_rel("bunny sweep", "sum of element volumes", volume, surface.signed_volume(), 1e-10);
+        assert_rel("bunny sweep", "boundary face area", area, surface.area(), 1e-10);
+        h *= 1.17;
+    }
 }
