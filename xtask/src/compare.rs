@@ -108,7 +108,7 @@ impl StudyObserver for Observer<'_> {
         if let Err(e) = self.csv.append(row) {
             self.write_error.get_or_insert(e);
         }
-        self.bar.println(format!(
+        let line = format!(
             "  {} {} n = {:>3}: {} DOFs, {:.3} s{}",
             row.method(),
             row.problem,
@@ -120,7 +120,13 @@ impl StudyObserver for Observer<'_> {
                 (_, Some(t)) => format!(", tip {t:.5} m"),
                 _ => String::new(),
             }
-        ));
+        );
+        // A hidden bar (no terminal, --quiet) drops println: write the line to stderr instead.
+        if self.bar.is_hidden() {
+            eprintln!("{line}");
+        } else {
+            self.bar.println(line);
+        }
     }
 }
 
@@ -209,7 +215,7 @@ fn mb(value: Option<f64>) -> String {
 }
 
 /// Rows of one problem grouped by method, each group sorted by n, methods in first-seen order.
-fn by_method<'a>(rows: &'a [Row], problem: Problem) -> Vec<(String, Vec<&'a Row>)> {
+fn by_method(rows: &[Row], problem: Problem) -> Vec<(String, Vec<&Row>)> {
     let mut groups: Vec<(String, Vec<&Row>)> = Vec::new();
     for r in rows.iter().filter(|r| r.problem == problem.key()) {
         match groups.iter_mut().find(|(m, _)| *m == r.method()) {

@@ -39,6 +39,7 @@ impl Lcg {
     }
 
     /// Next number in [−1, 1].
+    #[allow(clippy::should_implement_trait)] // an infinite generator, not an Iterator: no Option
     pub fn next(&mut self) -> Real {
         self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         ((self.0 >> 11) as Real / (1u64 << 53) as Real) * 2.0 - 1.0

@@ -73,6 +73,9 @@ impl Manufactured {
     }
 }
 
+/// An exact displacement field: `(u, ∇u)` at a rest position.
+pub type ExactField<'a> = dyn Fn(&Point3<Real>) -> (Vector3<Real>, Matrix3<Real>) + 'a;
+
 /// Relative errors of a discrete displacement against an exact field.
 #[derive(Clone, Copy, Debug)]
 pub struct FieldErrors {
@@ -88,7 +91,7 @@ pub fn field_errors(
     d: &dyn Discretization,
     displacement: &[Real],
     degree: usize,
-    exact: &dyn Fn(&Point3<Real>) -> (Vector3<Real>, Matrix3<Real>),
+    exact: &ExactField<'_>,
 ) -> FieldErrors {
     let (mut e0, mut n0, mut e1, mut n1) = (0.0, 0.0, 0.0, 0.0);
     d.visit_field(displacement, degree, &mut |s| {
