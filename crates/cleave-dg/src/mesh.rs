@@ -128,6 +128,8 @@ pub struct DgMesh {
     has_dirichlet: bool,
     /// Per element: (face index, reversed) of its outward faces.
     element_faces: Vec<Vec<(u32, bool)>>,
+    /// Seconds spent choosing η (assemblies and Cholesky attempts), part of `new`.
+    penalty_search_seconds: Real,
 }
 
 impl std::fmt::Debug for DgMesh {
@@ -271,11 +273,15 @@ impl DgMesh {
             rotation_gradients,
             has_dirichlet,
             element_faces,
+            penalty_search_seconds: 0.0,
         };
+        let search = std::time::Instant::now();
         // The penalty doubling; the Dirichlet load depends on η, so it is built with the final η.
         loop {
             this.blocks = build_blocks(num_nodes, &element_stiffness, &face_terms, this.penalty)?;
-            if this.stiffness_is_positive_definite() {
+            // BZ is a sum of positive semidefinite terms, positive definite for any η > 0 once
+            // rigid modes are fixed: nothing to search (docs/math/dg.md §5).
+            if options.flux == Flux::BabuskaZlamal || this.stiffness_is_positive_definite() {
                 break;
             }
             if this.doublings >= options.max_doublings {
@@ -284,6 +290,7 @@ impl DgMesh {
             this.penalty *= 2.0;
             this.doublings += 1;
         }
+        this.penalty_search_seconds = search.elapsed().as_secs_f64();
         let mut dirichlet_load = vec![0.0; 3 * num_nodes];
         if let Some(dirichlet) = dirichlet {
             let scaled = WeakDirichletScaled { inner: dirichlet, penalty: this.penalty };
@@ -304,6 +311,11 @@ impl DgMesh {
     /// The global penalty η the doubling reached.
     pub fn penalty(&self) -> Real {
         self.penalty
+    }
+
+    /// Seconds the penalty doubling took (assembly and Cholesky attempts), part of `new`.
+    pub fn penalty_search_seconds(&self) -> Real {
+        self.penalty_search_seconds
     }
 
     /// How many times η was doubled.

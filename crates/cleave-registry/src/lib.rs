@@ -2,18 +2,17 @@
 //! A backend joins with one file here implementing `cleave_testkit::compare::CompareBackend` and
 //! one line in [`backends`]; the problems, timing, tables and plots are shared.
 
+mod dg;
 mod voxel;
 
+pub use dg::DgBackend;
 pub use voxel::VoxelBackend;
 
 use cleave_testkit::compare::CompareBackend;
 
 /// Every registered backend, in report order.
 pub fn backends() -> Vec<Box<dyn CompareBackend>> {
-    vec![
-        Box::new(VoxelBackend),
-        // Box::new(DgBackend),  // cleave-dg: bz-1, ip-1, bz-2, ip-2
-    ]
+    vec![Box::new(VoxelBackend), Box::new(DgBackend)]
 }
 
 /// The registered backend called `name`.

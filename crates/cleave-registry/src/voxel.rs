@@ -35,7 +35,13 @@ impl CompareBackend for VoxelBackend {
             VoxelMesh::from_box(*material, grid.origin, grid.h, grid.dims).map_err(|e| BuildError(e.to_string()))?;
         let prescribed = nodal_dirichlet(&mesh, dirichlet.region, dirichlet.value);
         let elements = mesh.num_cubes();
-        Ok(BuiltProblem { discretization: Box::new(mesh), prescribed, dirichlet_load: Vec::new(), elements })
+        Ok(BuiltProblem {
+            discretization: Box::new(mesh),
+            prescribed,
+            dirichlet_load: Vec::new(),
+            elements,
+            search_seconds: 0.0,
+        })
     }
 
     fn extreme_start(
