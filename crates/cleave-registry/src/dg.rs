@@ -6,7 +6,7 @@ use cleave_core::{Material, Matrix3, Real, Vector3};
 use cleave_dg::{DgMesh, DgOptions, Flux, WeakDirichlet};
 use cleave_geometry::PolyhedralMesh;
 use cleave_testkit::compare::{
-    BoxGrid, BuildError, BuiltProblem, CompareBackend, DirichletSpec, ExtremeCase, NotApplicable,
+    BoxGrid, BuildError, BuiltProblem, CompareBackend, DirichletSpec, ExtremeCase, NotApplicable, stretch_start,
 };
 
 /// Registration of `cleave-dg`: variants `bz-1`, `ip-1`, `bz-2`, `ip-2` (flux, degree).
@@ -90,18 +90,7 @@ impl CompareBackend for DgBackend {
             ExtremeCase::Sliver => {
                 Err(NotApplicable("equal cubes on the hex grid (slivers arise from cutting, a later issue)".into()))
             }
-            ExtremeCase::Stretch100 => {
-                let stretch = Matrix3::from_diagonal(&Vector3::new(100.0, 1.0, 1.0));
-                let mut x: Vec<Real> = rest
-                    .chunks_exact(3)
-                    .flat_map(|p| {
-                        let q = stretch * Vector3::new(p[0], p[1], p[2]);
-                        [q.x, q.y, q.z]
-                    })
-                    .collect();
-                d.add_translation(&(grid.origin.coords - stretch * grid.origin.coords), &mut x);
-                Ok(x)
-            }
+            ExtremeCase::Stretch100 => Ok(stretch_start(built, grid)),
         }
     }
 }

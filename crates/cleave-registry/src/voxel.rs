@@ -3,7 +3,7 @@
 
 use cleave_core::{Material, Real};
 use cleave_testkit::compare::{
-    BoxGrid, BuildError, BuiltProblem, CompareBackend, DirichletSpec, ExtremeCase, NotApplicable,
+    BoxGrid, BuildError, BuiltProblem, CompareBackend, DirichletSpec, ExtremeCase, NotApplicable, stretch_start,
 };
 use cleave_testkit::problems::nodal_dirichlet;
 use cleave_voxel::VoxelMesh;
@@ -69,10 +69,7 @@ impl CompareBackend for VoxelBackend {
                 Ok(x)
             }
             ExtremeCase::Sliver => Err(NotApplicable("equal cubes (a voxel mesh has no slivers)".into())),
-            ExtremeCase::Stretch100 => Ok(rest
-                .chunks_exact(3)
-                .flat_map(|p| [grid.origin.x + 100.0 * (p[0] - grid.origin.x), p[1], p[2]])
-                .collect()),
+            ExtremeCase::Stretch100 => Ok(stretch_start(built, grid)),
         }
     }
 }
