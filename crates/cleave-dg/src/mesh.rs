@@ -415,11 +415,16 @@ impl DgMesh {
 
     /// The element containing `p` (rest space), by the generalized winding number of each nearby
     /// element's faces: 1 inside, ½ on a face, ¼ on an edge, so a point on the boundary of the
-    /// solid still finds the element it touches (the best one above ⅛).
+    /// solid still finds the element it touches (the best one above ⅛). A point inside no element
+    /// but within an element's bounding ball (a cone-rule sample of a non-convex element, a point
+    /// rounding put just outside) takes the element whose centre is nearest relative to its size:
+    /// its polynomial is the natural extension there. `None` beyond every bounding ball.
     pub fn locate(&self, p: &Point3<Real>) -> Option<usize> {
         let mut best: Option<(Real, usize)> = None;
+        let mut nearest: Option<(Real, usize)> = None;
         for (e, basis) in self.bases.iter().enumerate() {
-            if (basis.frame.center - p).norm() > basis.frame.scale * (1.0 + 1e-9) {
+            let relative = (basis.frame.center - p).norm() / basis.frame.scale;
+            if relative > 1.0 + 1e-9 {
                 continue;
             }
             let w = winding_number(&self.element_polygons(e), p);
@@ -429,8 +434,11 @@ impl DgMesh {
             if w > 0.1 && best.is_none_or(|(b, _)| w > b) {
                 best = Some((w, e));
             }
+            if nearest.is_none_or(|(r, _)| relative < r) {
+                nearest = Some((relative, e));
+            }
         }
-        best.map(|(_, e)| e)
+        best.or(nearest).map(|(_, e)| e)
     }
 }
 
