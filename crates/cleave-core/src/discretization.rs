@@ -104,7 +104,12 @@ pub trait Cuttable {
 pub trait Fracturable {
     /// Separates elements whose largest principal stress at positions `x` exceeds `threshold`
     /// (Pa); `None` if nothing broke.
-    fn fracture(&mut self, x: &[Real], rotations: &[Matrix3<Real>], threshold: Real) -> Result<Option<TopologyChange>, TopologyError>;
+    fn fracture(
+        &mut self,
+        x: &[Real],
+        rotations: &[Matrix3<Real>],
+        threshold: Real,
+    ) -> Result<Option<TopologyChange>, TopologyError>;
 }
 
 /// Backends that refine adaptively.

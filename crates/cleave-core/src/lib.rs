@@ -18,8 +18,8 @@ pub mod scatter;
 pub use assembly::AssemblyPattern;
 pub use blocks::{BlockRanks, BlockRef, BlockSet, BlockSetBuilder, BlockSetError, MAX_BLOCK_NODES};
 pub use discretization::{
-    Cuttable, CutSurface, Discretization, DofRemap, FieldSample, Fracturable, Refinable,
-    RotationStats, TopologyChange, TopologyError,
+    CoarseSpace, CutSurface, Cuttable, Discretization, DofRemap, FieldSample, Fracturable, Refinable, RotationStats,
+    TopologyChange, TopologyError,
 };
 pub use embedding::{EmbedError, Embedding};
 pub use mass::Mass;

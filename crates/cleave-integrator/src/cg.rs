@@ -32,19 +32,24 @@ impl CgWorkspace {
         }
     }
 
-    /// Solves `A x = b` from the initial guess in `x`, until `‖r‖ ≤ tol ‖b‖`.
+    /// Solves `A x = b` from the initial guess in `x`, until `‖r‖ ≤ tol · max(‖b‖, scale)`.
+    ///
+    /// `scale` is a floor for the right-hand side's norm: a body at rest has `b → 0` while the
+    /// terms that make up `b` stay large, and a tolerance relative to `‖b‖` alone would then ask
+    /// for ever more digits of a velocity that is already zero to within the load's scale.
     pub fn solve(
         &mut self,
         mut apply: impl FnMut(&[Real], &mut [Real]),
-        precondition: impl Fn(&[Real], &mut [Real]),
+        mut precondition: impl FnMut(&[Real], &mut [Real]),
         b: &[Real],
+        scale: Real,
         x: &mut [Real],
         tolerance: Real,
         max_iterations: usize,
     ) -> CgOutcome {
         self.resize(b.len());
         let Self { r, z, p, ap } = self;
-        let b_norm = dot(b, b).sqrt();
+        let b_norm = dot(b, b).sqrt().max(scale);
         if b_norm == 0.0 {
             x.fill(0.0);
             return CgOutcome { iterations: 0, relative_residual: 0.0, converged: true };
@@ -59,7 +64,7 @@ impl CgWorkspace {
         while residual > tolerance && iterations < max_iterations {
             apply(p, ap);
             let pap = dot(p, ap);
-            if !(pap > 0.0) {
+            if pap.is_nan() || pap <= 0.0 {
                 // Not positive definite along p (or NaN): stop and let the caller report it.
                 break;
             }

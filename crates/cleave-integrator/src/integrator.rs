@@ -12,6 +12,7 @@ use crate::cg::CgWorkspace;
 use crate::constraints::Constraints;
 use crate::error::{StepError, StepErrorKind};
 use crate::system::AssembledSystem;
+use crate::two_level::TwoLevel;
 use cleave_core::{Discretization, DofRemap, Matrix3, Point3, Real, TopologyChange, Vector3};
 use rayon::prelude::*;
 use std::time::Instant;
@@ -23,7 +24,7 @@ pub enum Solver {
     Cholesky,
     /// Block-Jacobi (3×3) preconditioned CG warm-started from the previous velocity.
     ConjugateGradient {
-        /// Relative residual `‖r‖/‖b‖` to reach.
+        /// Relative residual `‖r‖ / max(‖b‖, h‖f_ext‖)` to reach.
         tolerance: Real,
         /// Iteration limit; reaching it is a step error.
         max_iterations: usize,
@@ -31,6 +32,25 @@ pub enum Solver {
         assembled: bool,
     },
 }
+
+/// Preconditioner of the CG solver.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Preconditioner {
+    /// Inverse 3×3 diagonal node blocks of the step matrix, rebuilt every step.
+    BlockJacobi,
+    /// Block-Jacobi plus a coarse-space correction `P A_c⁻¹ Pᵀ` from the backend's
+    /// [`cleave_core::CoarseSpace`], with `A_c` factorized once per epoch (rotations at identity,
+    /// no contacts). Falls back to block-Jacobi when the backend offers no coarse space.
+    TwoLevel,
+    /// `TwoLevel` when the backend offers a coarse space of at most [`AUTO_COARSE_DOFS`] DOFs
+    /// (its factor grows faster than linearly), else `BlockJacobi`.
+    #[default]
+    Auto,
+}
+
+/// Largest coarse space `Preconditioner::Auto` factorizes: the 2h space of the 10k-cube bunny
+/// has 6.5k DOFs and a 2.3M-entry factor (18 MB); see docs/results/voxel-bench.md.
+pub const AUTO_COARSE_DOFS: usize = 30_000;
 
 /// Fixed parameters of a run.
 #[derive(Clone, Debug)]
@@ -45,12 +65,14 @@ pub struct Settings {
     pub rayleigh_beta: Real,
     /// The linear solver.
     pub solver: Solver,
+    /// The CG preconditioner (ignored by Cholesky).
+    pub preconditioner: Preconditioner,
     /// A step fails as diverged when a node moves farther than this many rest-shape diagonals.
     pub divergence_factor: Real,
 }
 
 impl Settings {
-    /// Defaults: matrix-free CG at 1e-6, no damping, Earth gravity along −z, h = 1/60 s.
+    /// Defaults: matrix-free CG at 1e-6 with the `Auto` preconditioner, no damping, Earth gravity along −z, h = 1/60 s.
     pub fn new(time_step: Real) -> Self {
         Self {
             time_step,
@@ -58,6 +80,7 @@ impl Settings {
             rayleigh_alpha: 0.0,
             rayleigh_beta: 0.0,
             solver: Solver::ConjugateGradient { tolerance: 1e-6, max_iterations: 2000, assembled: false },
+            preconditioner: Preconditioner::Auto,
             divergence_factor: 1e3,
         }
     }
@@ -92,7 +115,7 @@ pub struct StepReport {
     pub time: Real,
     /// CG iterations (1 for a direct solve).
     pub iterations: usize,
-    /// Final relative residual `‖b − A v‖/‖b‖`.
+    /// Final relative residual `‖b − A v‖ / max(‖b‖, h‖f_ext‖)` (0 for a direct solve).
     pub residual: Real,
     /// Phase timings.
     pub seconds: PhaseSeconds,
@@ -142,13 +165,18 @@ pub struct Integrator {
     time: Real,
     divergence_limit: Real,
     system: Option<AssembledSystem>,
+    two_level: Option<TwoLevel>,
     work: Workspace,
     last_inverted: usize,
 }
 
 impl Integrator {
     /// Starts at rest in the rest shape of `discretization`.
-    pub fn new(discretization: &dyn Discretization, settings: Settings, constraints: Constraints) -> Result<Self, StepError> {
+    pub fn new(
+        discretization: &dyn Discretization,
+        settings: Settings,
+        constraints: Constraints,
+    ) -> Result<Self, StepError> {
         let x = discretization.rest_dofs().to_vec();
         let v = vec![0.0; x.len()];
         let mut integrator = Self {
@@ -164,6 +192,7 @@ impl Integrator {
             time: 0.0,
             divergence_limit: 0.0,
             system: None,
+            two_level: None,
             work: Workspace::default(),
             last_inverted: 0,
         };
@@ -178,26 +207,8 @@ impl Integrator {
         self.last_inverted = discretization.write_rotations(&self.x, &mut self.rotations).inverted;
         self.external_force = vec![0.0; n];
         let g = self.settings.gravity;
-        let density = discretization.mass().total();
-        if g != Vector3::zeros() && density > 0.0 {
-            // Lumped masses give the consistent gravity load exactly: f = M g per node.
-            self.external_force
-                .chunks_exact_mut(3)
-                .zip(discretization.mass().diagonal().chunks_exact(3))
-                .for_each(|(f, m)| {
-                    for a in 0..3 {
-                        f[a] = m[a] * g[a];
-                    }
-                });
-        }
-        if !self.constraints.extra_load.is_empty() {
-            if self.constraints.extra_load.len() != n {
-                return Err(StepErrorKind::Solver(format!(
-                    "extra load has length {} but the system has {n} DOFs",
-                    self.constraints.extra_load.len()
-                )));
-            }
-            self.external_force.iter_mut().zip(&self.constraints.extra_load).for_each(|(f, e)| *f += e);
+        if g != Vector3::zeros() {
+            discretization.add_gravity_load(&g, &mut self.external_force);
         }
         self.pinned = vec![false; n];
         for &d in &self.constraints.pinned_dofs {
@@ -224,6 +235,22 @@ impl Integrator {
         } else {
             None
         };
+        self.two_level = None;
+        let wants_two_level = matches!(self.settings.solver, Solver::ConjugateGradient { .. })
+            && self.settings.preconditioner != Preconditioner::BlockJacobi;
+        if wants_two_level {
+            let space = discretization.coarse_space().filter(|space| {
+                self.settings.preconditioner == Preconditioner::TwoLevel || 3 * space.num_nodes <= AUTO_COARSE_DOFS
+            });
+            if let Some(space) = space {
+                let h = self.settings.time_step;
+                let mass_scale = 1.0 + h * self.settings.rayleigh_alpha;
+                let stiffness_scale = h * self.settings.rayleigh_beta + h * h;
+                let pins = self.constraints.penalty_pins.as_ref();
+                self.two_level =
+                    Some(TwoLevel::new(discretization, space, &self.pinned, pins, mass_scale, stiffness_scale, h)?);
+            }
+        }
         self.work.rhs = vec![0.0; n];
         self.work.force = vec![0.0; n];
         self.work.scratch = vec![0.0; n];
@@ -236,7 +263,12 @@ impl Integrator {
 
     /// Carries the state across a topology change and rebuilds the per-epoch structures. The
     /// caller passes constraints re-embedded on the new topology.
-    pub fn apply_topology_change(&mut self, discretization: &dyn Discretization, change: &TopologyChange, constraints: Constraints) -> Result<(), StepError> {
+    pub fn apply_topology_change(
+        &mut self,
+        discretization: &dyn Discretization,
+        change: &TopologyChange,
+        constraints: Constraints,
+    ) -> Result<(), StepError> {
         if change.remap != DofRemap::Identity {
             self.x = change.remap.apply(&self.x);
             self.v = change.remap.apply(&self.v);
@@ -287,6 +319,12 @@ impl Integrator {
     /// Nonzeros of the assembled matrix and of its Cholesky factor, if assembled.
     pub fn matrix_stats(&self) -> Option<(usize, Option<usize>)> {
         self.system.as_ref().map(|s| (s.pattern.nnz(), s.factor_nnz()))
+    }
+
+    /// Coarse DOFs and nonzeros of the coarse Cholesky factor, if the two-level preconditioner
+    /// is active.
+    pub fn coarse_stats(&self) -> Option<(usize, usize)> {
+        self.two_level.as_ref().map(TwoLevel::size)
     }
 
     /// Energies of the current state (rotations must be current, which they are between steps).
@@ -393,21 +431,22 @@ impl Integrator {
                 let depth = &self.work.contact_depth;
                 let system = &self.system;
                 let preconditioner = &self.work.preconditioner;
+                let mut two_level = self.two_level.as_mut();
+                // One step's external impulse `h ‖f_ext‖` floors the residual scale (see cg.rs).
+                let load_scale = h * self.external_force.iter().map(|f| f * f).sum::<Real>().sqrt();
                 let outcome = self.work.cg.solve(
-                    |p, out| {
-                        match system {
-                            Some(s) => s.pattern.mul_vec(&s.values, p, out),
-                            None => {
-                                mass.apply(p, out);
-                                if mass_scale != 1.0 {
-                                    out.iter_mut().for_each(|o| *o *= mass_scale);
-                                }
-                                discretization.add_stiffness_action(rotations, p, stiffness_scale, out);
-                                add_penalty_action(constraints, depth, h, p, out);
-                                for (o, &pin) in out.iter_mut().zip(pinned) {
-                                    if pin {
-                                        *o = 0.0;
-                                    }
+                    |p, out| match system {
+                        Some(s) => s.pattern.mul_vec(&s.values, p, out),
+                        None => {
+                            mass.apply(p, out);
+                            if mass_scale != 1.0 {
+                                out.iter_mut().for_each(|o| *o *= mass_scale);
+                            }
+                            discretization.add_stiffness_action(rotations, p, stiffness_scale, out);
+                            add_penalty_action(constraints, depth, h, p, out);
+                            for (o, &pin) in out.iter_mut().zip(pinned) {
+                                if pin {
+                                    *o = 0.0;
                                 }
                             }
                         }
@@ -417,8 +456,12 @@ impl Integrator {
                             let y = m * Vector3::new(r[0], r[1], r[2]);
                             z.copy_from_slice(y.as_slice());
                         });
+                        if let Some(two_level) = two_level.as_deref_mut() {
+                            two_level.add_correction(r, z);
+                        }
                     },
                     &self.work.rhs,
+                    load_scale,
                     &mut self.v,
                     tolerance,
                     max_iterations,
@@ -472,16 +515,27 @@ impl Integrator {
         Ok(report)
     }
 
-    /// Adds penalty forces at `x` to `work.force` and records contact depths.
+    /// Adds penalty forces at `x` to `work.force` and records which contacts are active.
+    ///
+    /// A contact is active when its point is below the plane at `x` or would be at `x + h v`:
+    /// a point 2.4 m/s fast moves 4 cm in a 1/60 s step, so testing `x` alone lets it sink a whole
+    /// step's travel before the penalty sees it. An active contact gets the linearized force
+    /// `−k (min(d, 0) + h n·v⁺) n` (the `h² k` matrix term supplies the `v⁺` part). A point still
+    /// above the plane (`d > 0`) only has its approach stopped: the consistent `−k d` would pull
+    /// it down onto the plane, and points at the edge of a resting contact patch, flickering in
+    /// and out of the active set, would pump energy into the body through it.
+    /// `work.contact_depth` holds `min(d, d + h n·v)`: negative exactly when active.
     fn add_penalty_forces(&mut self) {
         let force = &mut self.work.force;
+        let h = self.settings.time_step;
         if let Some(points) = &self.constraints.contact_points {
             for (p_index, plane) in self.constraints.planes.iter().enumerate() {
                 for i in 0..points.len() {
                     let depth = plane.normal.dot(&(points.point(&self.x, i) - plane.point));
-                    self.work.contact_depth[p_index * points.len() + i] = depth;
-                    if depth < 0.0 {
-                        let f = plane.normal * (-plane.stiffness * depth);
+                    let predicted = depth + h * plane.normal.dot(&points.point(&self.v, i).coords);
+                    self.work.contact_depth[p_index * points.len() + i] = depth.min(predicted);
+                    if depth.min(predicted) < 0.0 {
+                        let f = plane.normal * (-plane.stiffness * depth.min(0.0));
                         let (nodes, weights) = points.row(i);
                         for (&n, &w) in nodes.iter().zip(weights) {
                             for a in 0..3 {
@@ -526,7 +580,13 @@ impl Integrator {
     }
 
     /// 3×3 block-Jacobi preconditioner: inverse diagonal blocks of the system matrix.
-    fn build_preconditioner(&mut self, discretization: &dyn Discretization, mass_scale: Real, stiffness_scale: Real, h: Real) {
+    fn build_preconditioner(
+        &mut self,
+        discretization: &dyn Discretization,
+        mass_scale: Real,
+        stiffness_scale: Real,
+        h: Real,
+    ) {
         let blocks = &mut self.work.preconditioner;
         blocks.iter_mut().for_each(|b| *b = Matrix3::zeros());
         discretization.blocks().add_diagonal_blocks(&self.rotations, stiffness_scale, blocks);
@@ -566,9 +626,9 @@ impl Integrator {
                     b[(a, a)] = 1.0;
                 }
             }
-            *b = b.try_inverse().unwrap_or_else(|| {
-                Matrix3::from_diagonal(&b.diagonal().map(|d| if d != 0.0 { 1.0 / d } else { 1.0 }))
-            });
+            *b = b
+                .try_inverse()
+                .unwrap_or_else(|| Matrix3::from_diagonal(&b.diagonal().map(|d| if d != 0.0 { 1.0 / d } else { 1.0 })));
         });
     }
 }

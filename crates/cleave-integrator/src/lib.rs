@@ -9,8 +9,9 @@ mod error;
 mod integrator;
 mod statics;
 mod system;
+mod two_level;
 
 pub use constraints::{Constraints, PenaltyPins, PlaneCollider};
 pub use error::{StepError, StepErrorKind};
-pub use integrator::{Integrator, PhaseSeconds, Settings, Solver, StepReport};
-pub use statics::{solve_static, StaticSolution};
+pub use integrator::{AUTO_COARSE_DOFS, Integrator, PhaseSeconds, Preconditioner, Settings, Solver, StepReport};
+pub use statics::{StaticSolution, solve_static};

@@ -6,7 +6,7 @@ use crate::stiffness::{corner_offset, corner_signs, cube_stiffness};
 use cleave_core::quadrature::gauss_legendre;
 use cleave_core::rotation::extract_rotation;
 use cleave_core::{
-    BlockSet, BlockSetBuilder, Discretization, EmbedError, Embedding, FieldSample, Mass, Material,
+    BlockSet, BlockSetBuilder, CoarseSpace, Discretization, EmbedError, Embedding, FieldSample, Mass, Material,
     Matrix3, Point3, Real, RotationStats, Vector3,
 };
 use nalgebra::DMatrix;
@@ -33,6 +33,10 @@ pub enum VoxelError {
 /// for smooth motion, the cap bounds the cost of violent steps.
 const ROTATION_ITERATIONS: usize = 8;
 
+/// Edge of the coarse cubes of the two-level preconditioner, in cubes (measured in
+/// `docs/results/voxel-bench.md`).
+const DEFAULT_COARSENING: i32 = 2;
+
 /// A mesh of equal cubes with shared corners.
 #[derive(Debug)]
 pub struct VoxelMesh {
@@ -48,6 +52,7 @@ pub struct VoxelMesh {
     stiffness: Box<[Real; 576]>,
     blocks: BlockSet,
     epoch: u64,
+    coarsening: i32,
 }
 
 impl VoxelMesh {
@@ -75,8 +80,7 @@ impl VoxelMesh {
         }
         node_coords.sort_unstable_by_key(|c| (c[2], c[1], c[0]));
         node_coords.dedup();
-        let node_index: HashMap<[i32; 3], u32> =
-            node_coords.iter().enumerate().map(|(i, c)| (*c, i as u32)).collect();
+        let node_index: HashMap<[i32; 3], u32> = node_coords.iter().enumerate().map(|(i, c)| (*c, i as u32)).collect();
         let cube_nodes: Vec<[u32; 8]> = cells
             .iter()
             .map(|cell| {
@@ -87,10 +91,8 @@ impl VoxelMesh {
             })
             .collect();
         let cell_index = cells.iter().enumerate().map(|(i, c)| (*c, i as u32)).collect();
-        let rest: Vec<Real> = node_coords
-            .iter()
-            .flat_map(|c| (0..3).map(move |a| origin[a] + h * c[a] as Real))
-            .collect();
+        let rest: Vec<Real> =
+            node_coords.iter().flat_map(|c| (0..3).map(move |a| origin[a] + h * c[a] as Real)).collect();
         let mut lumped = vec![0.0; 3 * node_coords.len()];
         let corner_mass = material.density * h * h * h / 8.0;
         for nodes in &cube_nodes {
@@ -120,6 +122,7 @@ impl VoxelMesh {
             stiffness,
             blocks,
             epoch: 0,
+            coarsening: DEFAULT_COARSENING,
         })
     }
 
@@ -197,6 +200,60 @@ impl VoxelMesh {
         f / (4.0 * self.h)
     }
 
+    /// Sets the edge of the coarse cubes of [`Discretization::coarse_space`] in cubes (≥ 2;
+    /// smaller values are raised to 2).
+    pub fn set_coarsening(&mut self, ratio: i32) {
+        self.coarsening = ratio.max(2);
+    }
+
+    /// The coarse space of cubes of edge `ratio·h` (the parents `⌊c/ratio⌋` of the cubes) with
+    /// trilinear interpolation of every fine node from a parent that contains it. Neighbouring
+    /// parents share their face nodes and interpolate a node on a shared face from those alone,
+    /// so the prolongation is continuous and reproduces every coarse trilinear field, rigid
+    /// motions included. `ratio` below 2 is raised to 2.
+    pub fn coarse_space_with_ratio(&self, ratio: i32) -> CoarseSpace {
+        let ratio = ratio.max(2);
+        let parent = |cell: &[i32; 3]| cell.map(|c| c.div_euclid(ratio));
+        let mut coarse_nodes: Vec<[i32; 3]> = Vec::with_capacity(self.cells.len() / 2);
+        for cell in &self.cells {
+            let p = parent(cell);
+            for c in 0..8 {
+                let o = corner_offset(c);
+                coarse_nodes.push([p[0] + o[0], p[1] + o[1], p[2] + o[2]]);
+            }
+        }
+        coarse_nodes.sort_unstable_by_key(|c| (c[2], c[1], c[0]));
+        coarse_nodes.dedup();
+        let coarse_index: HashMap<[i32; 3], u32> =
+            coarse_nodes.iter().enumerate().map(|(i, c)| (*c, i as u32)).collect();
+        // One parent per fine node: the parent of any cube touching it.
+        let mut node_parent: Vec<Option<[i32; 3]>> = vec![None; self.node_coords.len()];
+        for (cell, nodes) in self.cells.iter().zip(&self.cube_nodes) {
+            for &n in nodes {
+                node_parent[n as usize].get_or_insert_with(|| parent(cell));
+            }
+        }
+        let mut prolongation = Embedding::new();
+        let (mut nodes, mut weights) = (Vec::with_capacity(8), Vec::with_capacity(8));
+        for (coords, p) in self.node_coords.iter().zip(&node_parent) {
+            let p = p.expect("every node belongs to a cube");
+            // Local coordinate in the parent, in [0, 1] per axis.
+            let t: [Real; 3] = std::array::from_fn(|a| (coords[a] - ratio * p[a]) as Real / ratio as Real);
+            nodes.clear();
+            weights.clear();
+            for c in 0..8 {
+                let o = corner_offset(c);
+                let w: Real = (0..3).map(|a| if o[a] == 1 { t[a] } else { 1.0 - t[a] }).product();
+                if w != 0.0 {
+                    nodes.push(coarse_index[&[p[0] + o[0], p[1] + o[1], p[2] + o[2]]]);
+                    weights.push(w);
+                }
+            }
+            prolongation.push_row(&nodes, &weights);
+        }
+        CoarseSpace { num_nodes: coarse_nodes.len(), prolongation }
+    }
+
     /// Trilinear shape values and reference gradients at local coordinates `t ∈ [0,1]³`.
     fn shape(&self, t: [Real; 3]) -> ([Real; 8], [[Real; 3]; 8]) {
         let mut values = [0.0; 8];
@@ -218,7 +275,14 @@ impl VoxelMesh {
 
     /// The fast warped kernel shared by the force and the stiffness action:
     /// `out_c += s · R K (Rᵀ v_c − offset_c)` where `offset` is the rest corners (force) or zero.
-    fn warped_cube_product(&self, rotations: &[Matrix3<Real>], v: &[Real], subtract_rest: bool, scale: Real, out: &mut [Real]) {
+    fn warped_cube_product(
+        &self,
+        rotations: &[Matrix3<Real>],
+        v: &[Real],
+        subtract_rest: bool,
+        scale: Real,
+        out: &mut [Real],
+    ) {
         let k = &*self.stiffness;
         self.blocks.scatter_plan().scatter_add(out, |cube, buf, base| {
             let nodes = &self.cube_nodes[cube];
@@ -236,14 +300,14 @@ impl VoxelMesh {
                     local[3 * c + a] = value;
                 }
             }
+            // y = K local as a sum of columns (K is symmetric, so column `col` is row `col`):
+            // 24-wide axpys vectorize without reassociating a dot product's sum.
             let mut y = [0.0; 24];
-            for (row, y_row) in y.iter_mut().enumerate() {
-                let k_row = &k[24 * row..24 * row + 24];
-                let mut sum = 0.0;
-                for col in 0..24 {
-                    sum += k_row[col] * local[col];
+            for (col, &l) in local.iter().enumerate() {
+                let k_col: &[Real; 24] = k[24 * col..24 * col + 24].try_into().expect("24 entries");
+                for (y, &k) in y.iter_mut().zip(k_col) {
+                    *y += k * l;
                 }
-                *y_row = sum;
             }
             for (c, &n) in nodes.iter().enumerate() {
                 let i = 3 * n as usize - base;
@@ -297,6 +361,10 @@ impl Discretization for VoxelMesh {
 
     fn blocks(&self) -> &BlockSet {
         &self.blocks
+    }
+
+    fn coarse_space(&self) -> Option<CoarseSpace> {
+        Some(self.coarse_space_with_ratio(self.coarsening))
     }
 
     fn add_internal_force(&self, rotations: &[Matrix3<Real>], x: &[Real], out: &mut [Real]) {

@@ -1,0 +1,272 @@
+//! The two-level CG preconditioner: block-Jacobi plus a coarse-space correction,
+//!
+//! ```text
+//! z = D⁻¹ r + Z P A_c⁻¹ Pᵀ Z r,      A_c = Pᵀ Z A₀ Z P   (Galerkin)
+//! ```
+//!
+//! where `P` is the backend's prolongation ([`cleave_core::CoarseSpace`]), `Z` zeroes pinned DOFs
+//! and `A₀ = c_M M + c_K K + h² K_pins` is the step matrix with the rotations at identity and
+//! without contacts. `A₀` does not change within an epoch, so `A_c` is assembled and
+//! Cholesky-factorized once per epoch and every application costs one restriction, one pair of
+//! triangular solves and one prolongation. The additive form is symmetric positive definite for
+//! any positive definite `A_c`, so CG stays valid however far the rotations and contacts of a step
+//! drift from `A₀`; they only cost iterations. The design and its measurements:
+//! `docs/results/voxel-bench.md`.
+
+use crate::constraints::PenaltyPins;
+use crate::error::StepErrorKind;
+use cleave_core::{AssemblyPattern, CoarseSpace, Discretization, Embedding, Matrix3, Real};
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
+use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, factorize_symbolic_cholesky};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
+use faer::{Conj, MatMut, Par, Side};
+use rayon::prelude::*;
+
+/// The coarse operator, its factorization and the transfer operators of one epoch.
+pub(crate) struct TwoLevel {
+    prolongation: Embedding,
+    /// `Pᵀ` by coarse node: (fine node, weight) lists, for a parallel gather.
+    restriction: Embedding,
+    /// Fine scalar DOFs that are pinned (`Z`).
+    pinned: Vec<bool>,
+    symbolic: SymbolicCholesky<usize>,
+    factor_values: Vec<Real>,
+    scratch: MemBuffer,
+    coarse: Vec<Real>,
+    coarse_dofs: usize,
+    factor_nnz: usize,
+}
+
+/// Coarse nodes of the union of the prolongation rows of `nodes`, sorted.
+fn coarse_union(prolongation: &Embedding, nodes: &[u32], out: &mut Vec<u32>) {
+    out.clear();
+    for &n in nodes {
+        out.extend_from_slice(prolongation.row(n as usize).0);
+    }
+    out.sort_unstable();
+    out.dedup();
+}
+
+/// Adds `Pᵀ Z K Z P` of one fine term (nodes, 3×3 blocks `k(i, j)`) to the coarse values.
+struct Galerkin<'a> {
+    prolongation: &'a Embedding,
+    pinned: &'a [bool],
+    pattern: &'a AssemblyPattern,
+    union: Vec<u32>,
+    local: Vec<Matrix3<Real>>,
+}
+
+impl Galerkin<'_> {
+    fn add(&mut self, nodes: &[u32], k: impl Fn(usize, usize) -> Matrix3<Real>, values: &mut [Real]) {
+        coarse_union(self.prolongation, nodes, &mut self.union);
+        let m = self.union.len();
+        self.local.clear();
+        self.local.resize(m * m, Matrix3::zeros());
+        let position = |union: &[u32], c: u32| union.binary_search(&c).expect("the union holds every row's nodes");
+        for (i, &ni) in nodes.iter().enumerate() {
+            for (j, &nj) in nodes.iter().enumerate() {
+                let mut kij = k(i, j);
+                for a in 0..3 {
+                    if self.pinned[3 * ni as usize + a] {
+                        kij.row_mut(a).fill(0.0);
+                    }
+                    if self.pinned[3 * nj as usize + a] {
+                        kij.column_mut(a).fill(0.0);
+                    }
+                }
+                let (ci, wi) = self.prolongation.row(ni as usize);
+                let (cj, wj) = self.prolongation.row(nj as usize);
+                for (&ci, &wi) in ci.iter().zip(wi) {
+                    let row = position(&self.union, ci);
+                    for (&cj, &wj) in cj.iter().zip(wj) {
+                        let col = position(&self.union, cj);
+                        self.local[row * m + col] += kij * (wi * wj);
+                    }
+                }
+            }
+        }
+        for (col, &cj) in self.union.iter().enumerate() {
+            for (row, &ci) in self.union.iter().enumerate() {
+                let rank = self.pattern.rank(ci, cj).expect("the coarse pattern holds every term's union");
+                self.pattern.add_block(values, rank, cj, &self.local[row * m + col], 1.0);
+            }
+        }
+    }
+}
+
+impl TwoLevel {
+    /// Assembles and factorizes `A_c` for an epoch.
+    pub(crate) fn new(
+        discretization: &dyn Discretization,
+        space: CoarseSpace,
+        pinned: &[bool],
+        penalty_pins: Option<&PenaltyPins>,
+        mass_scale: Real,
+        stiffness_scale: Real,
+        h: Real,
+    ) -> Result<Self, StepErrorKind> {
+        let CoarseSpace { num_nodes: num_coarse, prolongation } = space;
+        let num_fine = discretization.num_nodes();
+        if prolongation.len() != num_fine {
+            return Err(StepErrorKind::Solver(format!(
+                "the coarse space has {} prolongation rows for {num_fine} nodes",
+                prolongation.len()
+            )));
+        }
+        if let Some(&bad) = (0..num_fine).flat_map(|k| prolongation.row(k).0).find(|&&c| c as usize >= num_coarse) {
+            return Err(StepErrorKind::Solver(format!("coarse node {bad} out of range (0..{num_coarse})")));
+        }
+        let blocks = discretization.blocks();
+        let mut union = Vec::new();
+        let mut groups: Vec<Vec<u32>> = Vec::with_capacity(blocks.len());
+        for nodes in blocks.node_groups() {
+            coarse_union(&prolongation, nodes, &mut union);
+            groups.push(union.clone());
+        }
+        if let Some(pins) = penalty_pins {
+            for nodes in pins.points.node_groups() {
+                coarse_union(&prolongation, nodes, &mut union);
+                groups.push(union.clone());
+            }
+        }
+        let pattern = AssemblyPattern::from_groups(num_coarse, groups.iter().map(Vec::as_slice));
+        drop(groups);
+        let mut values = vec![0.0; pattern.nnz()];
+        let mut galerkin =
+            Galerkin { prolongation: &prolongation, pinned, pattern: &pattern, union, local: Vec::new() };
+        for b in 0..blocks.len() {
+            let block = blocks.block(b);
+            // Rotations at identity: the rest matrix itself.
+            let k = |i: usize, j: usize| -> Matrix3<Real> {
+                block.rest.fixed_view::<3, 3>(3 * i, 3 * j).into_owned() * stiffness_scale
+            };
+            galerkin.add(block.nodes, k, &mut values);
+        }
+        if let Some(pins) = penalty_pins {
+            for i in 0..pins.points.len() {
+                let (nodes, weights) = pins.points.row(i);
+                let k = |a: usize, b: usize| Matrix3::identity() * (h * h * pins.stiffness * weights[a] * weights[b]);
+                galerkin.add(nodes, k, &mut values);
+            }
+        }
+        let mass = discretization.mass().diagonal();
+        for k in 0..num_fine {
+            let (nodes, weights) = prolongation.row(k);
+            for (&cj, &wj) in nodes.iter().zip(weights) {
+                for (&ci, &wi) in nodes.iter().zip(weights) {
+                    let rank = pattern.rank(ci, cj).expect("a row's nodes share a term");
+                    for a in 0..3 {
+                        if !pinned[3 * k + a] {
+                            values[pattern.position(rank, cj, a, a)] += mass_scale * mass[3 * k + a] * wi * wj;
+                        }
+                    }
+                }
+            }
+        }
+        // Coarse DOFs that no free fine DOF touches have an empty row: make it the identity (the
+        // restriction is zero there, so their correction stays zero).
+        for c in 0..num_coarse as u32 {
+            let rank = pattern.rank(c, c).expect("diagonal is in the pattern");
+            for a in 0..3 {
+                let p = pattern.position(rank, c, a, a);
+                if values[p] == 0.0 {
+                    values[p] = 1.0;
+                }
+            }
+        }
+
+        let dim = pattern.dim();
+        let symbolic_matrix =
+            SymbolicSparseColMat::new_checked(dim, dim, pattern.col_ptr().to_vec(), None, pattern.row_idx().to_vec());
+        let symbolic =
+            factorize_symbolic_cholesky(symbolic_matrix.as_ref(), Side::Lower, Default::default(), Default::default())
+                .map_err(|e| StepErrorKind::Solver(format!("coarse symbolic Cholesky: {e:?}")))?;
+        let par = Par::rayon(0);
+        let mut scratch = MemBuffer::try_new(StackReq::any_of(&[
+            symbolic.factorize_numeric_llt_scratch::<Real>(par, Default::default()),
+            symbolic.solve_in_place_scratch::<Real>(1, Par::Seq),
+        ]))
+        .map_err(|_| StepErrorKind::Solver("out of memory for the coarse Cholesky workspace".into()))?;
+        let mut factor_values = vec![0.0; symbolic.len_val()];
+        symbolic
+            .factorize_numeric_llt::<Real>(
+                &mut factor_values,
+                SparseColMatRef::new(symbolic_matrix.as_ref(), &values),
+                Side::Lower,
+                LltRegularization::default(),
+                par,
+                MemStack::new(&mut scratch),
+                Default::default(),
+            )
+            .map_err(|LltError::NonPositivePivot { index }| StepErrorKind::NotPositiveDefinite { pivot: index })?;
+
+        let mut lists: Vec<Vec<(u32, Real)>> = vec![Vec::new(); num_coarse];
+        for k in 0..num_fine {
+            let (nodes, weights) = prolongation.row(k);
+            for (&c, &w) in nodes.iter().zip(weights) {
+                lists[c as usize].push((k as u32, w));
+            }
+        }
+        let mut restriction = Embedding::new();
+        let (mut nodes, mut weights) = (Vec::new(), Vec::new());
+        for list in &lists {
+            nodes.clear();
+            weights.clear();
+            nodes.extend(list.iter().map(|e| e.0));
+            weights.extend(list.iter().map(|e| e.1));
+            restriction.push_row(&nodes, &weights);
+        }
+        let factor_nnz = symbolic.len_val();
+        Ok(Self {
+            prolongation,
+            restriction,
+            pinned: pinned.to_vec(),
+            symbolic,
+            factor_values,
+            scratch,
+            coarse: vec![0.0; dim],
+            coarse_dofs: dim,
+            factor_nnz,
+        })
+    }
+
+    /// Coarse DOFs and nonzeros of the coarse factor.
+    pub(crate) fn size(&self) -> (usize, usize) {
+        (self.coarse_dofs, self.factor_nnz)
+    }
+
+    /// `z += Z P A_c⁻¹ Pᵀ Z r`.
+    pub(crate) fn add_correction(&mut self, r: &[Real], z: &mut [Real]) {
+        let (restriction, pinned) = (&self.restriction, &self.pinned);
+        self.coarse.par_chunks_mut(3).enumerate().for_each(|(c, out)| {
+            let (nodes, weights) = restriction.row(c);
+            out.fill(0.0);
+            for (&k, &w) in nodes.iter().zip(weights) {
+                for a in 0..3 {
+                    let d = 3 * k as usize + a;
+                    if !pinned[d] {
+                        out[a] += w * r[d];
+                    }
+                }
+            }
+        });
+        let llt = LltRef::<'_, usize, Real>::new(&self.symbolic, &self.factor_values);
+        let n = self.coarse.len();
+        llt.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(&mut self.coarse, n, 1),
+            Par::Seq,
+            MemStack::new(&mut self.scratch),
+        );
+        let (prolongation, coarse) = (&self.prolongation, &self.coarse);
+        z.par_chunks_mut(3).enumerate().for_each(|(k, out)| {
+            let (nodes, weights) = prolongation.row(k);
+            for a in 0..3 {
+                if !pinned[3 * k + a] {
+                    out[a] += nodes.iter().zip(weights).map(|(&c, &w)| w * coarse[3 * c as usize + a]).sum::<Real>();
+                }
+            }
+        });
+    }
+}
