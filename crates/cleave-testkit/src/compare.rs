@@ -606,7 +606,8 @@ pub struct StudyOutcome {
 
 /// Refines `problem` for one method until the plan's budget, DOF cap or level cap stops it. The
 /// next level's wall time is predicted as the last one's times the last growth factor clamped to
-/// [8, 16] (16 with only one level done), and the study stops before a level whose predicted cost
+/// [8, 64] (16 with only one level done; a direct 3D solve grows up to 64× per halving of h once
+/// fill dominates), and the study stops before a level whose predicted cost
 /// (times its repetitions) would overrun the budget.
 pub fn run_study(
     backend: &dyn CompareBackend,
@@ -623,7 +624,7 @@ pub fn run_study(
             return StudyOutcome { rows, stop_reason: format!("level cap n ≤ {}", plan.max_n) };
         }
         let (predicted, predicted_dofs) = match (walls.as_slice(), rows.last()) {
-            ([.., previous, last], Some(row)) => (last * (last / previous).clamp(8.0, 16.0), row.dofs * 8),
+            ([.., previous, last], Some(row)) => (last * (last / previous).clamp(8.0, 64.0), row.dofs * 8),
             ([last], Some(row)) => (last * 16.0, row.dofs * 8),
             _ => (0.0, 0),
         };
