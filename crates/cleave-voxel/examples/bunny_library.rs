@@ -2,7 +2,7 @@
 //! the integrator onto a ground plane, print its height. The path to copy into your own program.
 
 use cleave_core::{Discretization, Material, Point3, Real, Vector3};
-use cleave_geometry::{voxelize, TriangleMesh};
+use cleave_geometry::{TriangleMesh, voxelize};
 use cleave_integrator::{Constraints, Integrator, PlaneCollider, Settings, Solver};
 use cleave_voxel::VoxelMesh;
 use std::io::BufReader;
@@ -38,7 +38,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for step in 0..120 {
         let report = integrator.step(&cubes)?;
         if step % 10 == 0 {
-            let lowest = (0..surface.len()).map(|i| surface.point(integrator.positions(), i).z).fold(Real::MAX, Real::min);
+            let lowest =
+                (0..surface.len()).map(|i| surface.point(integrator.positions(), i).z).fold(Real::MAX, Real::min);
             println!(
                 "t = {:.3} s  lowest z = {:.4} m  CG iterations = {:3}  energy = {:.4} J",
                 report.time,

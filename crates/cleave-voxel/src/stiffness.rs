@@ -9,11 +9,7 @@ use cleave_core::{Material, Real};
 /// Sign vector `s_c ∈ {−1, +1}³` of cube corner `c`.
 #[inline]
 pub fn corner_signs(c: usize) -> [Real; 3] {
-    [
-        if c & 1 != 0 { 1.0 } else { -1.0 },
-        if c & 2 != 0 { 1.0 } else { -1.0 },
-        if c & 4 != 0 { 1.0 } else { -1.0 },
-    ]
+    [if c & 1 != 0 { 1.0 } else { -1.0 }, if c & 2 != 0 { 1.0 } else { -1.0 }, if c & 4 != 0 { 1.0 } else { -1.0 }]
 }
 
 /// Integer offset of corner `c` from the cube's minimum corner.

@@ -4,7 +4,7 @@
 
 use cleave_core::{Discretization, Material, Point3, Real};
 use cleave_integrator::solve_static;
-use cleave_testkit::problems::{cantilever, field_errors, nodal_dirichlet, on_unit_cube_boundary, rate, Manufactured};
+use cleave_testkit::problems::{Manufactured, cantilever, field_errors, nodal_dirichlet, on_unit_cube_boundary, rate};
 use cleave_voxel::VoxelMesh;
 
 fn manufactured_errors(case: Manufactured, n: usize) -> (Real, Real) {
@@ -28,7 +28,15 @@ fn manufactured_solutions_converge_at_rates_two_and_one() {
             let (h0, h1) = (1.0 / sizes[w] as Real, 1.0 / sizes[w + 1] as Real);
             let l2 = rate(errors[w].0, errors[w + 1].0, h0, h1);
             let h1_rate = rate(errors[w].1, errors[w + 1].1, h0, h1);
-            println!("{case:?} n={}→{}: L2 {:.3e}→{:.3e} rate {l2:.3}, H1 {:.3e}→{:.3e} rate {h1_rate:.3}", sizes[w], sizes[w + 1], errors[w].0, errors[w + 1].0, errors[w].1, errors[w + 1].1);
+            println!(
+                "{case:?} n={}→{}: L2 {:.3e}→{:.3e} rate {l2:.3}, H1 {:.3e}→{:.3e} rate {h1_rate:.3}",
+                sizes[w],
+                sizes[w + 1],
+                errors[w].0,
+                errors[w + 1].0,
+                errors[w].1,
+                errors[w + 1].1
+            );
             assert!(l2 >= 1.9, "{case:?}: L2 rate {l2} < 1.9");
             assert!(h1_rate >= 0.9, "{case:?}: H1 rate {h1_rate} < 0.9");
         }
@@ -48,7 +56,8 @@ fn cantilever_tip(n: usize) -> (Real, Real) {
     let quadrature = cantilever::tip_face_quadrature(n);
     let points: Vec<Point3<Real>> = quadrature.iter().map(|(p, _)| *p).collect();
     let embedding = mesh.embed(&points).unwrap();
-    let tip: Real = quadrature.iter().enumerate().map(|(i, (_, w))| w * embedding.point(&solution.displacement, i).z).sum();
+    let tip: Real =
+        quadrature.iter().enumerate().map(|(i, (_, w))| w * embedding.point(&solution.displacement, i).z).sum();
     (tip, solution.strain_energy)
 }
 

@@ -73,7 +73,8 @@ fn momentum_is_conserved_and_energy_stays_bounded_without_gravity() {
 #[test]
 fn cholesky_and_both_cg_paths_agree_on_a_deformed_step() {
     let mesh = block(Material::new(1e6, 0.45, 1000.0).unwrap().with_damping(0.1, 0.01).unwrap());
-    let pinned: Vec<usize> = (0..mesh.num_nodes()).filter(|&n| mesh.node_coords()[n][0] == 0).flat_map(|n| 3 * n..3 * n + 3).collect();
+    let pinned: Vec<usize> =
+        (0..mesh.num_nodes()).filter(|&n| mesh.node_coords()[n][0] == 0).flat_map(|n| 3 * n..3 * n + 3).collect();
     let mut results = Vec::new();
     for solver in SOLVERS {
         let mut settings = Settings::new(1.0 / 30.0);
@@ -108,7 +109,12 @@ fn a_block_dropped_on_a_plane_comes_to_rest_on_it() {
     let stiffness = 1e5;
     let constraints = Constraints {
         contact_points: Some(contact_points),
-        planes: vec![PlaneCollider { point: Point3::new(0.0, 0.0, 0.5), normal: Vector3::z(), stiffness, damping: 50.0 }],
+        planes: vec![PlaneCollider {
+            point: Point3::new(0.0, 0.0, 0.5),
+            normal: Vector3::z(),
+            stiffness,
+            damping: 50.0,
+        }],
         ..Default::default()
     };
     let mut settings = Settings::new(1.0 / 60.0);

@@ -59,7 +59,12 @@ fn closed_form_equals_gauss_quadrature() {
         for row in 0..24 {
             for col in 0..24 {
                 let difference = (closed[row * 24 + col] - quadrature[(row, col)]).abs();
-                assert!(difference <= 1e-12 * scale, "E={e} nu={nu} h={h} entry ({row},{col}): {} vs {}", closed[row * 24 + col], quadrature[(row, col)]);
+                assert!(
+                    difference <= 1e-12 * scale,
+                    "E={e} nu={nu} h={h} entry ({row},{col}): {} vs {}",
+                    closed[row * 24 + col],
+                    quadrature[(row, col)]
+                );
             }
         }
     }
