@@ -8,10 +8,10 @@
 
 use cleave_benches::bunny_voxels;
 use cleave_core::{Discretization, Matrix3, Point3, Real, Vector3};
-use cleave_integrator::{solve_static, Constraints, Integrator, PlaneCollider, Settings, Solver};
+use cleave_integrator::{Constraints, Integrator, PlaneCollider, Settings, Solver, solve_static};
 use cleave_testkit::problems::cantilever;
 use cleave_voxel::VoxelMesh;
-use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 
 fn stiffness_action(c: &mut Criterion) {
@@ -58,7 +58,12 @@ fn bunny_step(c: &mut Criterion) {
             settings.solver = solver;
             let constraints = Constraints {
                 contact_points: Some(contact.clone()),
-                planes: vec![PlaneCollider { point: Point3::origin(), normal: Vector3::z(), stiffness: 2e4, damping: 20.0 }],
+                planes: vec![PlaneCollider {
+                    point: Point3::origin(),
+                    normal: Vector3::z(),
+                    stiffness: 2e4,
+                    damping: 20.0,
+                }],
                 ..Default::default()
             };
             let mut integrator = Integrator::new(&mesh, settings, constraints).expect("integrator");

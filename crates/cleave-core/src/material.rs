@@ -53,13 +53,7 @@ pub enum MaterialError {
 impl Material {
     /// A validated undamped material.
     pub fn new(youngs_modulus: Real, poisson_ratio: Real, density: Real) -> Result<Self, MaterialError> {
-        let material = Self {
-            youngs_modulus,
-            poisson_ratio,
-            density,
-            rayleigh_alpha: 0.0,
-            rayleigh_beta: 0.0,
-        };
+        let material = Self { youngs_modulus, poisson_ratio, density, rayleigh_alpha: 0.0, rayleigh_beta: 0.0 };
         material.validate()?;
         Ok(material)
     }

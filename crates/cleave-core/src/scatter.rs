@@ -63,15 +63,14 @@ impl ScatterPlan {
     {
         assert_eq!(out.len(), self.num_dofs, "scatter output has the wrong length");
         let mut buffers = self.buffers.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        buffers
-            .par_iter_mut()
-            .zip(self.chunks.par_iter().zip(self.dof_ranges.par_iter()))
-            .for_each(|(buffer, (items, range))| {
+        buffers.par_iter_mut().zip(self.chunks.par_iter().zip(self.dof_ranges.par_iter())).for_each(
+            |(buffer, (items, range))| {
                 buffer.fill(0.0);
                 for item in items.clone() {
                     per_item(item, buffer, range.start);
                 }
-            });
+            },
+        );
         // Reduce: split `out` into pieces and let each piece gather from the buffers overlapping it.
         let piece = self.num_dofs.div_ceil(rayon::current_num_threads() * 4).max(1024);
         let buffers = &*buffers;

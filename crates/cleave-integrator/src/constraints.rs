@@ -47,11 +47,7 @@ impl Constraints {
     /// Node groups that penalty terms couple (for the sparsity pattern).
     pub(crate) fn coupling_groups(&self) -> impl Iterator<Item = &[u32]> {
         let pins = self.penalty_pins.iter().flat_map(|p| p.points.node_groups());
-        let contacts = self
-            .contact_points
-            .iter()
-            .filter(|_| !self.planes.is_empty())
-            .flat_map(|c| c.node_groups());
+        let contacts = self.contact_points.iter().filter(|_| !self.planes.is_empty()).flat_map(|c| c.node_groups());
         pins.chain(contacts)
     }
 }

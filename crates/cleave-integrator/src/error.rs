@@ -30,7 +30,9 @@ pub enum StepErrorKind {
         limit: Real,
     },
     /// CG hit its iteration limit.
-    #[error("CG did not converge: relative residual {residual:.3e} after {iterations} iterations (tolerance {tolerance:.1e})")]
+    #[error(
+        "CG did not converge: relative residual {residual:.3e} after {iterations} iterations (tolerance {tolerance:.1e})"
+    )]
     CgNotConverged {
         /// iterations taken
         iterations: usize,

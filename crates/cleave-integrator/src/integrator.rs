@@ -210,6 +210,15 @@ impl Integrator {
         if g != Vector3::zeros() {
             discretization.add_gravity_load(&g, &mut self.external_force);
         }
+        if !self.constraints.extra_load.is_empty() {
+            if self.constraints.extra_load.len() != n {
+                return Err(StepErrorKind::Solver(format!(
+                    "extra load has length {} but the system has {n} DOFs",
+                    self.constraints.extra_load.len()
+                )));
+            }
+            self.external_force.iter_mut().zip(&self.constraints.extra_load).for_each(|(f, e)| *f += e);
+        }
         self.pinned = vec![false; n];
         for &d in &self.constraints.pinned_dofs {
             if d >= n {

@@ -27,7 +27,11 @@ pub struct StaticSolution {
 }
 
 /// Solves `K u = f` with `u_d = value` for every `(d, value)` in `prescribed`.
-pub fn solve_static(discretization: &dyn Discretization, load: &[Real], prescribed: &[(usize, Real)]) -> Result<StaticSolution, StepErrorKind> {
+pub fn solve_static(
+    discretization: &dyn Discretization,
+    load: &[Real],
+    prescribed: &[(usize, Real)],
+) -> Result<StaticSolution, StepErrorKind> {
     let n = 3 * discretization.num_nodes();
     if load.len() != n {
         return Err(StepErrorKind::Solver(format!("load has length {} but the system has {n} DOFs", load.len())));

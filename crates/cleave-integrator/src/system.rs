@@ -6,9 +6,9 @@ use crate::constraints::Constraints;
 use crate::error::StepErrorKind;
 use cleave_core::{AssemblyPattern, BlockRanks, Discretization, Embedding, Matrix3, Real};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::linalg::cholesky::llt::factor::LltRegularization;
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky};
 use faer::linalg::cholesky::llt::factor::LltError;
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, factorize_symbolic_cholesky};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Par, Side};
 
@@ -36,7 +36,14 @@ impl RowRanks {
     }
 
     /// Adds `w wᵀ ⊗ P` for row `i` of `rows`.
-    pub(crate) fn add_row(&self, rows: &Embedding, i: usize, p: &Matrix3<Real>, pattern: &AssemblyPattern, values: &mut [Real]) {
+    pub(crate) fn add_row(
+        &self,
+        rows: &Embedding,
+        i: usize,
+        p: &Matrix3<Real>,
+        pattern: &AssemblyPattern,
+        values: &mut [Real],
+    ) {
         let (nodes, weights) = rows.row(i);
         let ranks = &self.ranks[self.offsets[i]..self.offsets[i + 1]];
         let n = nodes.len();
@@ -70,17 +77,19 @@ struct CholeskyStorage {
 }
 
 impl AssembledSystem {
-    pub(crate) fn new(discretization: &dyn Discretization, constraints: &Constraints, with_cholesky: bool) -> Result<Self, StepErrorKind> {
+    pub(crate) fn new(
+        discretization: &dyn Discretization,
+        constraints: &Constraints,
+        with_cholesky: bool,
+    ) -> Result<Self, StepErrorKind> {
         let blocks = discretization.blocks();
         let pattern = AssemblyPattern::from_groups(
             discretization.num_nodes(),
             blocks.node_groups().chain(constraints.coupling_groups()),
         );
         let block_ranks = BlockRanks::new(blocks, &pattern);
-        let pin_ranks = constraints
-            .penalty_pins
-            .as_ref()
-            .map_or_else(RowRanks::default, |p| RowRanks::new(&p.points, &pattern));
+        let pin_ranks =
+            constraints.penalty_pins.as_ref().map_or_else(RowRanks::default, |p| RowRanks::new(&p.points, &pattern));
         let contact_ranks = match &constraints.contact_points {
             Some(points) if !constraints.planes.is_empty() => RowRanks::new(points, &pattern),
             _ => RowRanks::default(),
@@ -103,16 +112,16 @@ impl AssembledSystem {
                 }
             }
         }
-        let symbolic_matrix = SymbolicSparseColMat::new_checked(
-            dim,
-            dim,
-            pattern.col_ptr().to_vec(),
-            None,
-            pattern.row_idx().to_vec(),
-        );
+        let symbolic_matrix =
+            SymbolicSparseColMat::new_checked(dim, dim, pattern.col_ptr().to_vec(), None, pattern.row_idx().to_vec());
         let cholesky = if with_cholesky {
-            let symbolic = factorize_symbolic_cholesky(symbolic_matrix.as_ref(), Side::Lower, Default::default(), Default::default())
-                .map_err(|e| StepErrorKind::Solver(format!("symbolic Cholesky: {e:?}")))?;
+            let symbolic = factorize_symbolic_cholesky(
+                symbolic_matrix.as_ref(),
+                Side::Lower,
+                Default::default(),
+                Default::default(),
+            )
+            .map_err(|e| StepErrorKind::Solver(format!("symbolic Cholesky: {e:?}")))?;
             let par = Par::rayon(0);
             let scratch = MemBuffer::try_new(StackReq::any_of(&[
                 symbolic.factorize_numeric_llt_scratch::<Real>(par, Default::default()),
@@ -144,9 +153,21 @@ impl AssembledSystem {
     }
 
     /// `values = c_m M + c_k K_R` (penalty rows are added by the caller afterwards).
-    pub(crate) fn fill(&mut self, discretization: &dyn Discretization, rotations: &[Matrix3<Real>], mass_scale: Real, stiffness_scale: Real) {
+    pub(crate) fn fill(
+        &mut self,
+        discretization: &dyn Discretization,
+        rotations: &[Matrix3<Real>],
+        mass_scale: Real,
+        stiffness_scale: Real,
+    ) {
         self.values.fill(0.0);
-        discretization.blocks().add_to_matrix(rotations, stiffness_scale, &self.pattern, &self.block_ranks, &mut self.values);
+        discretization.blocks().add_to_matrix(
+            rotations,
+            stiffness_scale,
+            &self.pattern,
+            &self.block_ranks,
+            &mut self.values,
+        );
         let mass = discretization.mass().diagonal();
         for node in 0..self.pattern.num_nodes() as u32 {
             let rank = self.pattern.rank(node, node).expect("diagonal is in the pattern");

@@ -144,7 +144,7 @@ fn transform_point(t: &Transform, p: &Point3<Real>) -> Point3<Real> {
 /// Cubes per axis of a box of cell size `h`, or why it is not a whole number of cells.
 fn box_dims(min: &[Real; 3], max: &[Real; 3], h: Real) -> Result<[usize; 3], String> {
     let dims: Vec<usize> = (0..3).map(|a| ((max[a] - min[a]) / h).round().max(0.0) as usize).collect();
-    if dims.iter().any(|&d| d == 0)
+    if dims.contains(&0)
         || (0..3).any(|a| ((max[a] - min[a]) - dims[a] as Real * h).abs() > 1e-9 * h.max(1.0))
     {
         return Err(format!("the box {min:?}..{max:?} is not a whole number of cells of size {h}"));
@@ -528,7 +528,7 @@ impl Simulation {
             .integrator
             .step(self.discretization.as_ref())
             .map_err(|source| SceneError::Step { path: self.path.clone(), source })?;
-        if self.integrator.steps_taken() % self.surface_every == 0 {
+        if self.integrator.steps_taken().is_multiple_of(self.surface_every) {
             self.record_surface()?;
         }
         self.record_stats(&report)?;
@@ -554,7 +554,7 @@ impl Simulation {
 /// count (the surface layer makes the first guess too many cubes).
 fn cell_size_for(mesh: &TriangleMesh, target: usize) -> Result<Real, String> {
     let volume = mesh.signed_volume();
-    if !(volume > 0.0) {
+    if volume.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return Err(format!("enclosed volume is {volume}, cannot size cubes"));
     }
     let mut h = (volume / target as Real).cbrt();
