@@ -144,9 +144,7 @@ fn transform_point(t: &Transform, p: &Point3<Real>) -> Point3<Real> {
 /// Cubes per axis of a box of cell size `h`, or why it is not a whole number of cells.
 fn box_dims(min: &[Real; 3], max: &[Real; 3], h: Real) -> Result<[usize; 3], String> {
     let dims: Vec<usize> = (0..3).map(|a| ((max[a] - min[a]) / h).round().max(0.0) as usize).collect();
-    if dims.contains(&0)
-        || (0..3).any(|a| ((max[a] - min[a]) - dims[a] as Real * h).abs() > 1e-9 * h.max(1.0))
-    {
+    if dims.contains(&0) || (0..3).any(|a| ((max[a] - min[a]) - dims[a] as Real * h).abs() > 1e-9 * h.max(1.0)) {
         return Err(format!("the box {min:?}..{max:?} is not a whole number of cells of size {h}"));
     }
     Ok([dims[0], dims[1], dims[2]])
