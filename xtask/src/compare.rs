@@ -248,7 +248,7 @@ fn report(
         "Problems of [`docs/math/benchmarks.md`](../math/benchmarks.md) §1–§3, every registered backend and \
          variant, refined n = 1, 2, 4, … (MMS from 2) until the per-study budget ({} s per backend, variant and \
          problem{}) would be exceeded: the next level's time is predicted as the last one's times the last growth \
-         factor clamped to [8, 16]. Raw rows: [`compare.csv`](compare.csv) (one per run, appended as each \
+         factor clamped to [8, 64]. Raw rows: [`compare.csv`](compare.csv) (one per run, appended as each \
          finishes).\n",
         args.budget,
         if args.quick { "; `--quick` caps the levels instead" } else { "" }

@@ -68,9 +68,9 @@ fn interior_penalty_quadratic_converges_at_rate_three_in_l2() {
 
 #[test]
 fn babuska_zlamal_quadratic_loses_the_order_interior_penalty_keeps() {
-    // BZ is not consistent: its face penalty η_f ∝ E/h makes the consistency error O(h) in the
-    // energy norm whatever the degree, so quadratics cannot reach IP's third order (measured here
-    // so the claim in docs/math/dg.md stays true).
+    // BZ is not consistent: at fixed η its error stalls under refinement whatever the degree, so
+    // quadratics cannot reach IP's third order (measured here so the claim in docs/math/dg.md
+    // stays true).
     let bz = rates(Manufactured::Sin111, Flux::BabuskaZlamal, 2, &[2, 4, 8]);
     let ip = rates(Manufactured::Sin111, Flux::InteriorPenalty, 2, &[2, 4, 8]);
     let (bz_last, ip_last) = (bz.last().unwrap(), ip.last().unwrap());
