@@ -656,7 +656,7 @@ fn face_terms(
             }
             let e = face.inner as usize;
             let integrals = face_integrals(mesh, f, &[&bases[e]], exps);
-            let eta_f = material.youngs_modulus * area / bases[e].volume;
+            let eta_f = 2.0 * material.youngs_modulus * area / bases[e].volume;
             let mut unit_penalty = DMatrix::zeros(3 * nb, 3 * nb);
             for i in 0..nb {
                 for j in 0..nb {
@@ -745,7 +745,7 @@ fn add_dirichlet_load(
             continue;
         }
         let e = face.inner as usize;
-        let eta_f = dirichlet.penalty * material.youngs_modulus * area / bases[e].volume;
+        let eta_f = 2.0 * dirichlet.penalty * material.youngs_modulus * area / bases[e].volume;
         let t = lame_tensor(material, &normal);
         let points: Vec<Point3<Real>> = face.polygon.iter().map(|&v| mesh.vertices[v as usize]).collect();
         polygon_rule(&points, &normal, &mut |p, w| {
