@@ -413,6 +413,20 @@ impl DgMesh {
             .collect()
     }
 
+    /// Calls `visit(element, point, weight, ψ(point), ∇ψ(point))` at every point of the signed
+    /// cone rule of every element (degree 7; docs/math/dg.md §3), for loads and error norms.
+    fn for_each_quadrature_point(&self, visit: &mut dyn FnMut(usize, &Point3<Real>, Real, &[Real], &[Vector3<Real>])) {
+        let nb = self.exps.len();
+        let mut values = vec![0.0; nb];
+        let mut gradients = vec![Vector3::zeros(); nb];
+        for (e, basis) in self.bases.iter().enumerate() {
+            polyhedron_rule(self.element_polygons(e).into_iter(), &basis.frame.center, &mut |p, w| {
+                basis.evaluate(&self.exps, &p, &mut values, &mut gradients);
+                visit(e, &p, w, &values, &gradients);
+            });
+        }
+    }
+
     /// The element containing `p` (rest space), by the generalized winding number of each nearby
     /// element's faces: 1 inside, ½ on a face, ¼ on an edge, so a point on the boundary of the
     /// solid still finds the element it touches (the best one above ⅛). A point inside no element
@@ -819,20 +833,14 @@ impl Discretization for DgMesh {
 
     fn add_load(&self, force_density: &dyn Fn(&Point3<Real>) -> Vector3<Real>, out: &mut [Real]) {
         let nb = self.exps.len();
-        let mut values = vec![0.0; nb];
-        let mut gradients = vec![Vector3::zeros(); nb];
-        for e in 0..self.mesh.num_elements {
-            let basis = &self.bases[e];
-            polyhedron_rule(self.element_polygons(e).into_iter(), &basis.frame.center, &mut |p, w| {
-                let f = force_density(&p);
-                basis.evaluate(&self.exps, &p, &mut values, &mut gradients);
-                for i in 0..nb {
-                    for a in 0..3 {
-                        out[3 * (e * nb + i) + a] += w * values[i] * f[a];
-                    }
+        self.for_each_quadrature_point(&mut |e, p, w, values, _| {
+            let f = force_density(p);
+            for i in 0..nb {
+                for a in 0..3 {
+                    out[3 * (e * nb + i) + a] += w * values[i] * f[a];
                 }
-            });
-        }
+            }
+        });
     }
 
     fn add_translation(&self, t: &Vector3<Real>, x: &mut [Real]) {
@@ -874,23 +882,16 @@ impl Discretization for DgMesh {
 
     fn visit_field(&self, displacement: &[Real], _min_degree: usize, visit: &mut dyn FnMut(&FieldSample)) {
         let nb = self.exps.len();
-        let mut values = vec![0.0; nb];
-        let mut gradients = vec![Vector3::zeros(); nb];
-        for e in 0..self.mesh.num_elements {
-            let basis = &self.bases[e];
-            polyhedron_rule(self.element_polygons(e).into_iter(), &basis.frame.center, &mut |p, w| {
-                basis.evaluate(&self.exps, &p, &mut values, &mut gradients);
-                let mut u = Vector3::zeros();
-                let mut grad = Matrix3::zeros();
-                for i in 0..nb {
-                    let node = e * nb + i;
-                    let d =
-                        Vector3::new(displacement[3 * node], displacement[3 * node + 1], displacement[3 * node + 2]);
-                    u += d * values[i];
-                    grad += d * gradients[i].transpose();
-                }
-                visit(&FieldSample { position: p, weight: w, displacement: u, gradient: grad });
-            });
-        }
+        self.for_each_quadrature_point(&mut |e, p, w, values, gradients| {
+            let mut u = Vector3::zeros();
+            let mut grad = Matrix3::zeros();
+            for i in 0..nb {
+                let node = e * nb + i;
+                let d = Vector3::new(displacement[3 * node], displacement[3 * node + 1], displacement[3 * node + 2]);
+                u += d * values[i];
+                grad += d * gradients[i].transpose();
+            }
+            visit(&FieldSample { position: *p, weight: w, displacement: u, gradient: grad });
+        });
     }
 }
