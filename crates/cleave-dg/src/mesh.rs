@@ -99,6 +99,9 @@ pub enum DgError {
     Blocks(#[from] BlockSetError),
 }
 
+/// `visit(element, point, weight, ψ(point), ∇ψ(point))` of [`DgMesh::for_each_quadrature_point`].
+type QuadratureVisitor<'a> = dyn FnMut(usize, &Point3<Real>, Real, &[Real], &[Vector3<Real>]) + 'a;
+
 /// Face matrices before the penalty is chosen.
 struct FaceTerms {
     /// Nodes of the block (K⁻'s basis then K⁺'s, or K's alone on a Dirichlet face).
@@ -415,7 +418,7 @@ impl DgMesh {
 
     /// Calls `visit(element, point, weight, ψ(point), ∇ψ(point))` at every point of the signed
     /// cone rule of every element (degree 7; docs/math/dg.md §3), for loads and error norms.
-    fn for_each_quadrature_point(&self, visit: &mut dyn FnMut(usize, &Point3<Real>, Real, &[Real], &[Vector3<Real>])) {
+    fn for_each_quadrature_point(&self, visit: &mut QuadratureVisitor<'_>) {
         let nb = self.exps.len();
         let mut values = vec![0.0; nb];
         let mut gradients = vec![Vector3::zeros(); nb];
