@@ -599,7 +599,9 @@ fn face_integrals(mesh: &PolyhedralMesh, f: usize, sides: &[&ElementBasis], exps
     FaceIntegrals { p, q }
 }
 
-/// The terms of face `f`, `None` for free boundary faces.
+/// The terms of face `f`, `None` for free boundary faces. An interior face has the sides
+/// `(K⁻, K⁺)` with `sgn = (1, −1)` and the average's weight ½; a Dirichlet face has the one side
+/// `K` with `sgn = 1` and weight 1 (`σ⁻ := σ⁺`, docs/math/dg.md §4).
 fn face_terms(
     mesh: &PolyhedralMesh,
     f: usize,
@@ -609,62 +611,14 @@ fn face_terms(
     flux: Flux,
     dirichlet: Option<&WeakDirichlet<'_>>,
 ) -> Option<FaceTerms> {
-    let nb = exps.len();
+    let nb = exps.len() as u32;
     let face = &mesh.faces[f];
     let (area, normal, centroid) = face_area_normal_centroid(mesh, f);
-    let t = lame_tensor(material, &normal);
-    match face.outer {
+    let (elements, signs, average, eta_f): (Vec<usize>, &[Real], Real, Real) = match face.outer {
         Some(outer) => {
             let (em, ep) = (face.inner as usize, outer as usize);
-            let sides = [&bases[em], &bases[ep]];
-            let integrals = face_integrals(mesh, f, &sides, exps);
-            let sign = [1.0, -1.0];
             let eta_f = material.youngs_modulus * area * (1.0 / bases[em].volume + 1.0 / bases[ep].volume);
-            let n = 2 * nb;
-            let mut unit_penalty = DMatrix::zeros(3 * n, 3 * n);
-            for s in 0..2 {
-                for tt in 0..2 {
-                    for i in 0..nb {
-                        for j in 0..nb {
-                            let v = eta_f * sign[s] * sign[tt] * integrals.p[s][tt][(i, j)];
-                            for a in 0..3 {
-                                unit_penalty[(3 * (s * nb + i) + a, 3 * (tt * nb + j) + a)] = v;
-                            }
-                        }
-                    }
-                }
-            }
-            symmetrize(&mut unit_penalty);
-            let mut warped = Vec::new();
-            if flux == Flux::InteriorPenalty {
-                for (tt, frame) in [(0, em), (1, ep)] {
-                    // K1 restricted to trial side tt: −½ sgn_s ∫ ψ^s_i Σ_d T[a][b][d] ∂_dψ^t_j.
-                    let mut k = DMatrix::zeros(3 * n, 3 * n);
-                    for s in 0..2 {
-                        for i in 0..nb {
-                            for j in 0..nb {
-                                for a in 0..3 {
-                                    for b in 0..3 {
-                                        let mut v = 0.0;
-                                        for d in 0..3 {
-                                            v += t[a][b][d] * integrals.q[s][tt][d][(i, j)];
-                                        }
-                                        k[(3 * (s * nb + i) + a, 3 * (tt * nb + j) + b)] += -0.5 * sign[s] * v;
-                                    }
-                                }
-                            }
-                        }
-                    }
-                    let kt = k.transpose();
-                    k += kt;
-                    warped.push((k, frame as u32));
-                }
-            }
-            let nodes = (0..nb as u32)
-                .map(|i| em as u32 * nb as u32 + i)
-                .chain((0..nb as u32).map(|i| ep as u32 * nb as u32 + i))
-                .collect();
-            Some(FaceTerms { nodes, warped, unit_penalty })
+            (vec![em, ep], &[1.0, -1.0], 0.5, eta_f)
         }
         None => {
             let dirichlet = dirichlet?;
@@ -672,42 +626,71 @@ fn face_terms(
                 return None;
             }
             let e = face.inner as usize;
-            let integrals = face_integrals(mesh, f, &[&bases[e]], exps);
-            let eta_f = 2.0 * material.youngs_modulus * area / bases[e].volume;
-            let mut unit_penalty = DMatrix::zeros(3 * nb, 3 * nb);
-            for i in 0..nb {
-                for j in 0..nb {
-                    for a in 0..3 {
-                        unit_penalty[(3 * i + a, 3 * j + a)] = eta_f * integrals.p[0][0][(i, j)];
-                    }
-                }
-            }
-            symmetrize(&mut unit_penalty);
-            let mut warped = Vec::new();
-            if flux == Flux::InteriorPenalty {
-                // −∫ v·σ(u)n − ∫ u·σ(v)n, n outward from K.
-                let mut k = DMatrix::zeros(3 * nb, 3 * nb);
-                for i in 0..nb {
-                    for j in 0..nb {
-                        for a in 0..3 {
-                            for b in 0..3 {
-                                let mut v = 0.0;
-                                for d in 0..3 {
-                                    v += t[a][b][d] * integrals.q[0][0][d][(i, j)];
-                                }
-                                k[(3 * i + a, 3 * j + b)] -= v;
-                            }
-                        }
-                    }
-                }
-                let kt = k.transpose();
-                k += kt;
-                warped.push((k, e as u32));
-            }
-            let nodes = (0..nb as u32).map(|i| e as u32 * nb as u32 + i).collect();
-            Some(FaceTerms { nodes, warped, unit_penalty })
+            // The weight of an interior face between two such elements (docs/math/dg.md §4).
+            (vec![e], &[1.0], 1.0, 2.0 * material.youngs_modulus * area / bases[e].volume)
+        }
+    };
+    let sides: Vec<&ElementBasis> = elements.iter().map(|&e| &bases[e]).collect();
+    let integrals = face_integrals(mesh, f, &sides, exps);
+    let unit_penalty = penalty_matrix(&integrals, signs, eta_f);
+    let mut warped = Vec::new();
+    if flux == Flux::InteriorPenalty {
+        let t = lame_tensor(material, &normal);
+        for (trial, &frame) in elements.iter().enumerate() {
+            warped.push((consistency_matrix(&integrals, &t, signs, average, trial), frame as u32));
         }
     }
+    let nodes = elements.iter().flat_map(|&e| (0..nb).map(move |i| e as u32 * nb + i)).collect();
+    Some(FaceTerms { nodes, warped, unit_penalty })
+}
+
+/// `η_f ∫ ⟦u⟧ : ⟦v⟧`: `[(s,i,a),(t,j,a)] = η_f sgn_s sgn_t P^{st}_{ij}`.
+fn penalty_matrix(integrals: &FaceIntegrals, signs: &[Real], eta_f: Real) -> DMatrix<Real> {
+    let nb = integrals.p[0][0].nrows();
+    let n = signs.len() * nb;
+    let mut k = DMatrix::zeros(3 * n, 3 * n);
+    for (s, sign_s) in signs.iter().enumerate() {
+        for (t, sign_t) in signs.iter().enumerate() {
+            for i in 0..nb {
+                for j in 0..nb {
+                    let v = eta_f * sign_s * sign_t * integrals.p[s][t][(i, j)];
+                    for a in 0..3 {
+                        k[(3 * (s * nb + i) + a, 3 * (t * nb + j) + a)] = v;
+                    }
+                }
+            }
+        }
+    }
+    symmetrize(&mut k);
+    k
+}
+
+/// The part of `K_f1 + K_f2` that uses the strain of side `trial`:
+/// `K1[(s,i,a),(trial,j,b)] = −w sgn_s Σ_d T_abd Q^{s,trial}_{ij,d}` plus its transpose.
+fn consistency_matrix(
+    integrals: &FaceIntegrals,
+    t: &[[[Real; 3]; 3]; 3],
+    signs: &[Real],
+    average: Real,
+    trial: usize,
+) -> DMatrix<Real> {
+    let nb = integrals.p[0][0].nrows();
+    let n = signs.len() * nb;
+    let mut k = DMatrix::zeros(3 * n, 3 * n);
+    for (s, sign_s) in signs.iter().enumerate() {
+        for i in 0..nb {
+            for j in 0..nb {
+                for a in 0..3 {
+                    for b in 0..3 {
+                        let v: Real = (0..3).map(|d| t[a][b][d] * integrals.q[s][trial][d][(i, j)]).sum();
+                        k[(3 * (s * nb + i) + a, 3 * (trial * nb + j) + b)] -= average * sign_s * v;
+                    }
+                }
+            }
+        }
+    }
+    let kt = k.transpose();
+    k + kt
 }
 
 fn build_blocks(
