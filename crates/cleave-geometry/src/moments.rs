@@ -298,25 +298,7 @@ pub fn try_element_moments(
     if element >= mesh.num_elements {
         return Err(GeometryError::ElementOutOfRange { element, num_elements: mesh.num_elements });
     }
-    let e = element as u64;
-    let faces: Vec<ElementFace<'_>> = mesh
-        .faces
-        .iter()
-        .enumerate()
-        .flat_map(|(f, face)| {
-            let inner = (u64::from(face.inner) == e).then_some(ElementFace {
-                face: f,
-                polygon: &face.polygon,
-                reversed: false,
-            });
-            let outer = (face.outer.map(u64::from) == Some(e)).then_some(ElementFace {
-                face: f,
-                polygon: &face.polygon,
-                reversed: true,
-            });
-            inner.into_iter().chain(outer)
-        })
-        .collect();
+    let faces = mesh.faces_of(element);
     try_element_moments_from_faces(mesh, &faces, frame, max_degree, out)
 }
 

@@ -91,6 +91,22 @@ impl PolyhedralMesh {
         Self { vertices, faces, num_elements: nx * ny * nz }
     }
 
+    /// The faces of one element, outward for it (a scan over all faces; for every element at
+    /// once use [`PolyhedralMesh::element_faces`]).
+    pub fn faces_of(&self, element: usize) -> Vec<ElementFace<'_>> {
+        let e = element as u64;
+        let mut out = Vec::new();
+        for (f, face) in self.faces.iter().enumerate() {
+            if u64::from(face.inner) == e {
+                out.push(ElementFace { face: f, polygon: &face.polygon, reversed: false });
+            }
+            if face.outer.map(u64::from) == Some(e) {
+                out.push(ElementFace { face: f, polygon: &face.polygon, reversed: true });
+            }
+        }
+        out
+    }
+
     /// The faces of every element, outward for that element: `result[e]` lists element `e`'s
     /// faces.
     pub fn element_faces(&self) -> Vec<Vec<ElementFace<'_>>> {
