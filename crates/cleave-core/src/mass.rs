@@ -48,7 +48,9 @@ impl Mass {
         }
     }
 
-    /// Total mass (sum over the x components, which carry every node's mass once).
+    /// Sum of the x-component diagonal: the body's mass for nodal bases with lumped mass. Not a
+    /// mass for non-nodal bases (DG's orthonormal coefficients carry ρ each); there the mass is
+    /// the work of `add_gravity_load` on the translation `add_translation` gives.
     pub fn total(&self) -> Real {
         match self {
             Mass::Lumped(m) => m.iter().step_by(3).sum(),
