@@ -262,6 +262,12 @@ pub enum GeometryError {
         /// The rejected tolerance.
         tolerance: f64,
     },
+    /// A sliver-merging volume threshold is negative, infinite or NaN.
+    #[error("invalid merge threshold {threshold}: must be non-negative and finite")]
+    InvalidMergeThreshold {
+        /// The rejected threshold (a volume, or a fraction of the cell volume for slicing).
+        threshold: f64,
+    },
     /// A moment frame has a non-finite centre or a scale that is not positive and finite.
     #[error("invalid frame: center {center:?}, scale {scale} (the scale must be positive and finite)")]
     InvalidFrame {

@@ -1,6 +1,6 @@
 //! Hexahedral slicing (kaufmann2008 §10): a closed surface cut by a regular grid of cubes into
-//! polyhedral elements, one per connected component of (cell ∩ solid). See
-//! `docs/math/hex-slicing.md`.
+//! polyhedral elements, one per connected component of (cell ∩ solid), with small pieces merged
+//! into neighbours by default. See `docs/math/hex-slicing.md`.
 
 use std::collections::HashMap;
 
@@ -8,7 +8,7 @@ use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
 use crate::voxelize::voxelize_on_grid;
-use crate::{GeometryError, PolyFace, PolyhedralMesh, TriangleMesh};
+use crate::{GeometryError, MergeReport, PolyFace, PolyhedralMesh, TriangleMesh, merge_small_elements};
 
 /// Largest number of grid cells (of the bounding grid) [`hex_slice`] accepts.
 pub const MAX_SLICE_CELLS: u64 = 20_000_000;
@@ -37,6 +37,26 @@ const SHIFT_ATTEMPTS: usize = 16;
 /// so meshes aligned with the lattice `h·ℤ³` (boxes, voxel models) are never degenerate.
 const SHIFT_STEPS: [f64; 3] = [0.618_033_988_749_894_9, 0.414_213_562_373_095_1, 0.732_050_807_568_877_2];
 
+/// Default [`HexSliceOptions::merge_below`]: pieces smaller than 5% of a cell are merged into a
+/// neighbour. Below it the penalty and basis conditioning of a corner, edge or face nick grows
+/// quickly; the reasoning and the measured effect are in `docs/math/hex-slicing.md` §6.
+pub const DEFAULT_MERGE_BELOW: f64 = 0.05;
+
+/// Options of [`hex_slice_with`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HexSliceOptions {
+    /// Sliver merging threshold as a fraction of the cell volume `h³`: every element of volume
+    /// below `merge_below·h³` is merged into a face-adjacent neighbour by
+    /// [`merge_small_elements`]. `0.0` keeps the raw slicing (one element per piece of a cell).
+    pub merge_below: f64,
+}
+
+impl Default for HexSliceOptions {
+    fn default() -> Self {
+        Self { merge_below: DEFAULT_MERGE_BELOW }
+    }
+}
+
 /// The result of [`hex_slice`]: polyhedral elements and the grid cell each came from.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HexSlicing {
@@ -45,16 +65,28 @@ pub struct HexSlicing {
     pub mesh: PolyhedralMesh,
     /// Grid cell `[i, j, k]` of each element; cell `[i, j, k]` is the cube from
     /// `origin + cell_size·(i, j, k)` to `origin + cell_size·(i + 1, j + 1, k + 1)`.
+    ///
+    /// After sliver merging an element is a union of raw pieces (see
+    /// [`MergeReport::element_map`]) joined through shared faces, so from a connected set of
+    /// cells. Its cell is the cell of its survivor ([`MergeReport::survivors`]), the piece the
+    /// others were merged into, directly or through a chain. Small pieces join the neighbour
+    /// they share the most area with, so the survivor is typically the element's main piece,
+    /// but the element extends beyond that cell.
     pub element_cells: Vec<[i32; 3]>,
     /// Minimum corner of grid cell `[0, 0, 0]`, including the genericity shift.
     pub origin: Point3<f64>,
     /// Edge length of the cells.
     pub cell_size: f64,
+    /// The sliver merge applied to the raw slicing (no merges when
+    /// [`HexSliceOptions::merge_below`] is 0); its `element_map` maps the raw pieces, one per
+    /// connected component of (cell ∩ solid), to the elements of `mesh`.
+    pub merge: MergeReport,
 }
 
 /// Slices the solid bounded by the closed, outward-oriented triangle mesh `surface` with a
 /// regular grid of cubes of edge `cell_size`: every connected component of (cell ∩ solid)
-/// becomes one element (kaufmann2008 §10, "hexagonal slicing").
+/// becomes one element (kaufmann2008 §10, "hexagonal slicing"), and elements smaller than
+/// [`DEFAULT_MERGE_BELOW`]` · h³` are then merged into neighbours (last paragraph).
 ///
 /// Cells entirely inside become cubes; cells the surface crosses become arbitrary (possibly
 /// non-convex) polyhedra bounded by (a) the pieces of the surface triangles clipped to the
@@ -78,11 +110,36 @@ pub struct HexSlicing {
 /// [`MAX_SLICE_CELLS`]; [`GeometryError::NoGenericGridShift`] if every shift is degenerate or
 /// leaves a sliver; [`GeometryError::SliceInconsistent`] if the pieces do not fit together,
 /// which happens for self-intersecting surfaces.
+///
+/// Pieces smaller than [`DEFAULT_MERGE_BELOW`]` · h³` are then merged into neighbours (see
+/// [`hex_slice_with`]); this is [`hex_slice_with`] with [`HexSliceOptions::default`].
 pub fn hex_slice(surface: &TriangleMesh, cell_size: f64) -> Result<HexSlicing, GeometryError> {
+    hex_slice_with(surface, cell_size, HexSliceOptions::default())
+}
+
+/// [`hex_slice`] with explicit options.
+///
+/// After slicing, every element of volume below `options.merge_below · h³` is merged into the
+/// face-adjacent neighbour it shares the most face area with ([`merge_small_elements`],
+/// kaufmann2008 §10 "sliver merging"); the report is [`HexSlicing::merge`]. Merged elements are
+/// non-convex in general, may have several faces to one neighbour, and interior faces stay
+/// planar regions of grid faces. `merge_below = 0` returns the raw slicing.
+///
+/// Errors: those of [`hex_slice`], and [`GeometryError::InvalidMergeThreshold`] for a negative,
+/// infinite or NaN `merge_below`.
+pub fn hex_slice_with(
+    surface: &TriangleMesh,
+    cell_size: f64,
+    options: HexSliceOptions,
+) -> Result<HexSlicing, GeometryError> {
     surface.validate_closed()?;
     let h = cell_size;
     if !(h.is_finite() && h > 0.0) {
         return Err(GeometryError::InvalidCellSize { cell_size });
+    }
+    let merge_below = options.merge_below;
+    if !(merge_below.is_finite() && merge_below >= 0.0) {
+        return Err(GeometryError::InvalidMergeThreshold { threshold: merge_below });
     }
     let (lo, hi) = surface.aabb();
     for attempt in 1..=SHIFT_ATTEMPTS {
@@ -95,8 +152,11 @@ pub fn hex_slice(surface: &TriangleMesh, cell_size: f64) -> Result<HexSlicing, G
         }
         let Some(slicer) = Slicer::new(surface, origin, h) else { continue };
         let grid = voxelize_on_grid(surface, origin, h, dims_f)?;
-        let slicing = slicer.slice(&grid)?;
+        let mut slicing = slicer.slice(&grid)?;
         if smallest_face_area(&slicing.mesh) >= MIN_FACE_AREA * h * h {
+            let merge = merge_small_elements(&mut slicing.mesh, merge_below * h * h * h)?;
+            slicing.element_cells = merge.survivors.iter().map(|&p| slicing.element_cells[p as usize]).collect();
+            slicing.merge = merge;
             return Ok(slicing);
         }
     }
@@ -767,6 +827,7 @@ impl<'a> Slicer<'a> {
             element_cells,
             origin: self.origin,
             cell_size: self.h,
+            merge: MergeReport::default(),
         })
     }
 }

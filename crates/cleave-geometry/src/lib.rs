@@ -12,6 +12,9 @@
 //!   2004, §2.1.
 //! - [`hex_slice`] producing a [`HexSlicing`] (module `hex_slice`): a closed surface sliced by
 //!   a cube grid into polyhedral elements (Kaufmann et al. 2008, §10).
+//!   Pieces below a fraction of the cell volume are merged into neighbours by
+//!   [`merge_small_elements`] (module `merge`, kaufmann2008 §10 "sliver merging");
+//!   [`hex_slice_with`] takes [`HexSliceOptions`] to change or disable that.
 //! - [`PolyhedralMesh`] (module `polyhedral`): polyhedral elements with shared planar
 //!   polygon faces, for the DG backend (Kaufmann et al. 2008), checked by
 //!   [`PolyhedralMesh::validate`] (module `poly_validate`) returning [`PolyMeshStats`].
@@ -24,6 +27,7 @@
 mod error;
 mod hex_slice;
 mod inside;
+mod merge;
 mod mesh;
 mod moments;
 mod obj;
@@ -34,8 +38,12 @@ mod validate;
 mod voxelize;
 
 pub use error::GeometryError;
-pub use hex_slice::{GRID_MARGIN, HexSlicing, MAX_SLICE_CELLS, MIN_FACE_AREA, hex_slice};
+pub use hex_slice::{
+    DEFAULT_MERGE_BELOW, GRID_MARGIN, HexSliceOptions, HexSlicing, MAX_SLICE_CELLS, MIN_FACE_AREA, hex_slice,
+    hex_slice_with,
+};
 pub use inside::InsideTester;
+pub use merge::{MergeReport, merge_small_elements};
 pub use mesh::TriangleMesh;
 pub use moments::{
     Frame, MAX_MOMENT_DEGREE, element_frame, element_moments, element_moments_from_faces, element_volume_centroid,

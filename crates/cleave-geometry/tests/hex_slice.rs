@@ -1,6 +1,7 @@
 //! Tests of `hex_slice`: element volumes against the surface's enclosed volume, closed and
 //! consistently oriented element boundaries, separate elements for separate pieces of one cell,
-//! boundary faces tiling the surface, and input errors.
+//! boundary faces tiling the surface, input errors, and the default sliver merging of the bunny
+//! slicings (volume kept, no small element left, pieces accounted for).
 
 mod common;
 
@@ -8,9 +9,10 @@ use std::collections::{HashMap, HashSet};
 use std::time::Instant;
 
 use cleave_geometry::{
-    GeometryError, HexSlicing, MIN_FACE_AREA, PolyhedralMesh, TriangleMesh, hex_slice, triangle_aabb_overlap,
+    DEFAULT_MERGE_BELOW, GeometryError, HexSliceOptions, HexSlicing, MIN_FACE_AREA, PolyhedralMesh, TriangleMesh,
+    hex_slice, hex_slice_with, triangle_aabb_overlap,
 };
-use common::{box_mesh, bunny, icosphere};
+use common::{BUNNY_VOLUME, box_mesh, bunny, icosphere};
 use nalgebra::{Point3, Vector3};
 
 /// Outward polygons of every element: `(face, vertex indices in outward order)`.
@@ -107,6 +109,8 @@ fn check_slicing(name: &str, surface: &TriangleMesh, s: &HexSlicing) -> (f64, f6
     let h = s.cell_size;
     assert_eq!(s.element_cells.len(), mesh.num_elements);
     assert_closed_oriented(mesh);
+    // The crate's own check too (the DG backend runs it with this tolerance).
+    mesh.validate(1e-8).unwrap_or_else(|e| panic!("{name}: validate rejects the slicing: {e}"));
     let volumes = element_volumes(mesh);
     let min_volume = volumes.iter().copied().fold(f64::INFINITY, f64::min);
     assert!(min_volume > 0.0, "{name}: an element has volume {min_volume:e}");
@@ -159,9 +163,14 @@ fn assert_rel(name: &str, what: &str, got: f64, expected: f64, tol: f64) {
     assert!(rel <= tol, "{name}: {what} {got} vs {expected}: relative error {rel:e} > {tol:e}");
 }
 
+/// The raw slicing, one element per connected piece of a cell: the structural tests below
+/// count and measure pieces per cell.
+const RAW: HexSliceOptions = HexSliceOptions { merge_below: 0.0 };
+
 fn check_volume_and_area(name: &str, surface: &TriangleMesh, cell_size: f64) -> HexSlicing {
     let start = Instant::now();
-    let s = hex_slice(surface, cell_size).expect("slicing succeeds");
+    let s = hex_slice_with(surface, cell_size, RAW).expect("slicing succeeds");
+    assert_eq!(s.merge.merges, 0, "{name}: merge_below = 0 merged something");
     println!("{name}: sliced in {:.1} ms", start.elapsed().as_secs_f64() * 1e3);
     let (volume, area) = check_slicing(name, surface, &s);
     assert_rel(name, "sum of element volumes", volume, surface.signed_volume(), 1e-10);
@@ -403,15 +412,125 @@ fn degenerate_first_shift_is_replaced() {
 
 #[test]
 fn bunny_sweep_of_cell_sizes() {
-    // Many grids, many chances for near-coincidences: every slicing must pass the structural
-    // checks and conserve the volume.
+    // Many grids, many chances for near-coincidences: every slicing, raw and merged, must pass
+    // the structural checks and conserve the volume.
     let surface = bunny();
     let mut h = 0.45;
     while h < 4.0 {
-        let s = hex_slice(&surface, h).expect("slicing succeeds");
-        let (volume, area) = check_slicing("bunny sweep", &surface, &s);
-        assert_rel("bunny sweep", "sum of element volumes", volume, surface.signed_volume(), 1e-10);
-        assert_rel("bunny sweep", "boundary face area", area, surface.area(), 1e-10);
+        for (name, options) in [("bunny sweep raw", RAW), ("bunny sweep merged", HexSliceOptions::default())] {
+            let s = hex_slice_with(&surface, h, options).expect("slicing succeeds");
+            let (volume, area) = check_slicing(name, &surface, &s);
+            assert_rel(name, "sum of element volumes", volume, surface.signed_volume(), 1e-10);
+            assert_rel(name, "boundary face area", area, surface.area(), 1e-10);
+            if options.merge_below > 0.0 {
+                assert_merged(name, &s);
+            }
+        }
         h *= 1.17;
+    }
+}
+
+/// The largest interior-face penalty factor `area · (1/vol⁻ + 1/vol⁺)` in units of `1/h` (2 for
+/// two cubes): the scale of the penalty term η_f of `docs/math/dg.md` §4.
+fn max_penalty_factor(mesh: &PolyhedralMesh, h: f64) -> f64 {
+    let volumes = element_volumes(mesh);
+    mesh.faces
+        .iter()
+        .filter_map(|f| {
+            let o = f.outer? as usize;
+            let area = area_vector(&mesh.vertices, &f.polygon).norm();
+            Some(area * (1.0 / volumes[f.inner as usize] + 1.0 / volumes[o]) * h)
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Checks of a merged slicing against numbers computed here: no element below the threshold
+/// except isolated ones (no interior face) as many as reported, and the report's bookkeeping.
+fn assert_merged(name: &str, s: &HexSlicing) {
+    let h = s.cell_size;
+    let threshold = DEFAULT_MERGE_BELOW * h * h * h;
+    let volumes = element_volumes(&s.mesh);
+    let mut has_neighbour = vec![false; s.mesh.num_elements];
+    for f in &s.mesh.faces {
+        if let Some(o) = f.outer {
+            has_neighbour[f.inner as usize] = true;
+            has_neighbour[o as usize] = true;
+        }
+    }
+    let small: Vec<usize> = (0..volumes.len()).filter(|&e| volumes[e] < threshold).collect();
+    for &e in &small {
+        assert!(!has_neighbour[e], "{name}: element {e} of volume {:e} h³ has a neighbour", volumes[e] / h.powi(3));
+    }
+    let r = &s.merge;
+    assert_eq!(small.len(), r.isolated_small, "{name}: isolated small elements");
+    assert_eq!(r.elements_after, s.mesh.num_elements);
+    assert_eq!(r.elements_before - r.merges, r.elements_after);
+    let min = volumes.iter().copied().fold(f64::INFINITY, f64::min);
+    let diff = (r.min_volume_after - min).abs() / (h * h * h);
+    assert!(diff < 1e-12, "{name}: reported smallest volume after merging off by {diff:e} h³");
+}
+
+#[test]
+fn bunny_sliver_merging() {
+    let surface = bunny();
+    for (name, cell_size) in [("bunny ~41", 3.0), ("bunny ~300", 1.1), ("bunny ~5000", 0.375)] {
+        let h3 = cell_size * cell_size * cell_size;
+        let raw = hex_slice_with(&surface, cell_size, RAW).expect("raw slicing succeeds");
+        let start = Instant::now();
+        let s = hex_slice(&surface, cell_size).expect("slicing succeeds");
+        let seconds = start.elapsed().as_secs_f64();
+        let (volume, area) = check_slicing(name, &surface, &s);
+        // The enclosed volume from the bunny's triangles (independent node script) and from the
+        // crate's surface volume.
+        assert_rel(name, "merged volumes vs independent bunny volume", volume, BUNNY_VOLUME, 1e-10);
+        assert_rel(name, "merged volumes vs surface volume", volume, surface.signed_volume(), 1e-10);
+        assert_rel(name, "boundary face area", area, surface.area(), 1e-10);
+        assert_merged(name, &s);
+        // Same grid, and every merged element is the union of the raw pieces mapped to it.
+        assert_eq!(s.origin, raw.origin);
+        assert_eq!(s.merge.elements_before, raw.mesh.num_elements);
+        let raw_volumes = element_volumes(&raw.mesh);
+        let mut summed = vec![0.0; s.mesh.num_elements];
+        for (piece, &e) in s.merge.element_map.iter().enumerate() {
+            summed[e as usize] += raw_volumes[piece];
+        }
+        for (e, (&got, &expected)) in element_volumes(&s.mesh).iter().zip(&summed).enumerate() {
+            assert_rel(name, &format!("element {e} volume vs its raw pieces"), got, expected, 1e-9);
+        }
+        // The cell of a merged element is its surviving piece's cell.
+        for (e, &piece) in s.merge.survivors.iter().enumerate() {
+            assert_eq!(s.merge.element_map[piece as usize] as usize, e);
+            assert_eq!(s.element_cells[e], raw.element_cells[piece as usize]);
+        }
+        let raw_min = raw_volumes.iter().copied().fold(f64::INFINITY, f64::min);
+        println!(
+            "{name}: h = {cell_size}: {} → {} elements ({} merges, {} isolated small kept); smallest volume \
+             {:.2e} h³ → {:.2e} h³; max penalty factor area·(1/v⁻+1/v⁺)·h {:.3e} → {:.3e}; merged slicing {:.1} ms",
+            raw.mesh.num_elements,
+            s.mesh.num_elements,
+            s.merge.merges,
+            s.merge.isolated_small,
+            raw_min / h3,
+            s.merge.min_volume_after / h3,
+            max_penalty_factor(&raw.mesh, cell_size),
+            max_penalty_factor(&s.mesh, cell_size),
+            seconds * 1e3,
+        );
+        // Absolute in h³: the cone sums here lose digits on pieces far smaller than the cell.
+        let diff = (s.merge.min_volume_before - raw_min).abs() / h3;
+        assert!(diff < 1e-12, "{name}: reported smallest raw volume off by {diff:e} h³");
+        assert!(s.mesh.num_elements < raw.mesh.num_elements, "{name}: nothing merged");
+    }
+}
+
+#[test]
+fn invalid_merge_threshold() {
+    let surface = box_mesh([0.0; 3], [1.0; 3]);
+    for merge_below in [-0.1, f64::NAN, f64::INFINITY] {
+        let result = hex_slice_with(&surface, 0.3, HexSliceOptions { merge_below });
+        assert!(
+            matches!(result, Err(GeometryError::InvalidMergeThreshold { threshold }) if threshold.to_bits() == merge_below.to_bits()),
+            "merge_below {merge_below}: {result:?}"
+        );
     }
 }
