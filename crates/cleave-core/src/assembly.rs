@@ -77,6 +77,11 @@ impl AssemblyPattern {
         self.row_idx.len()
     }
 
+    /// The nodes coupled to node `j` (sorted, `j` included): the node-level graph of the pattern.
+    pub fn neighbours(&self, j: u32) -> &[u32] {
+        &self.neighbours[self.neighbour_offsets[j as usize]..self.neighbour_offsets[j as usize + 1]]
+    }
+
     /// CSC column pointers (length `3n + 1`).
     pub fn col_ptr(&self) -> &[usize] {
         &self.col_ptr

@@ -7,6 +7,7 @@
 
 pub mod assembly;
 pub mod blocks;
+pub mod cholesky;
 pub mod discretization;
 pub mod embedding;
 pub mod mass;
@@ -17,6 +18,7 @@ pub mod scatter;
 
 pub use assembly::AssemblyPattern;
 pub use blocks::{BlockRanks, BlockRef, BlockSet, BlockSetBuilder, BlockSetError, MAX_BLOCK_NODES};
+pub use cholesky::{CholeskyError, SparseCholesky};
 pub use discretization::{
     CoarseSpace, CutSurface, Cuttable, Discretization, DofRemap, FieldSample, Fracturable, Refinable, RotationStats,
     TopologyChange, TopologyError,

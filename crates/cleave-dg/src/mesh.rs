@@ -6,8 +6,8 @@ use crate::basis::{ElementBasis, add, basis_size, exponents, index, shifted_mono
 use crate::quadrature::{polygon_rule, polyhedron_rule};
 use cleave_core::rotation::extract_rotation;
 use cleave_core::{
-    AssemblyPattern, BlockRanks, BlockSet, BlockSetBuilder, BlockSetError, Discretization, EmbedError, Embedding,
-    FieldSample, Mass, Material, Matrix3, Point3, Real, RotationStats, Vector3,
+    AssemblyPattern, BlockRanks, BlockSet, BlockSetBuilder, BlockSetError, CholeskyError, Discretization, EmbedError,
+    Embedding, FieldSample, Mass, Material, Matrix3, Point3, Real, RotationStats, SparseCholesky, Vector3,
 };
 use cleave_geometry::{
     ElementFace, Frame, GeometryError, PolyhedralMesh, element_moments_from_faces, face_area_normal_centroid,
@@ -97,6 +97,17 @@ pub enum DgError {
     /// A block the backend built is malformed (a bug, reported instead of panicking).
     #[error("internal block error: {0}")]
     Blocks(#[from] BlockSetError),
+    /// The sparse Cholesky of the definiteness check could not be set up (out of memory).
+    #[error("definiteness check: {0}")]
+    Solver(String),
+}
+
+/// What the penalty doubling's definiteness check keeps between the η it tries.
+struct DefinitenessCheck {
+    pattern: AssemblyPattern,
+    ranks: BlockRanks,
+    values: Vec<Real>,
+    cholesky: Option<SparseCholesky>,
 }
 
 /// `visit(element, point, weight, ψ(point), ∇ψ(point))` of [`DgMesh::for_each_quadrature_point`].
@@ -279,12 +290,22 @@ impl DgMesh {
             penalty_search_seconds: 0.0,
         };
         let search = std::time::Instant::now();
+        let mut check: Option<DefinitenessCheck> = None;
         // The penalty doubling; the Dirichlet load depends on η, so it is built with the final η.
         loop {
             this.blocks = build_blocks(num_nodes, &element_stiffness, &face_terms, this.penalty)?;
             // BZ is a sum of positive semidefinite terms, positive definite for any η > 0 once
             // rigid modes are fixed: nothing to search (docs/math/dg.md §5).
-            if options.flux == Flux::BabuskaZlamal || this.stiffness_is_positive_definite() {
+            if options.flux == Flux::BabuskaZlamal {
+                break;
+            }
+            let check = check.get_or_insert_with(|| {
+                let pattern = AssemblyPattern::from_groups(num_nodes, this.blocks.node_groups());
+                let ranks = BlockRanks::new(&this.blocks, &pattern);
+                let values = vec![0.0; pattern.nnz()];
+                DefinitenessCheck { pattern, ranks, values, cholesky: None }
+            });
+            if this.stiffness_is_positive_definite(check)? {
                 break;
             }
             if this.doublings >= options.max_doublings {
@@ -364,41 +385,35 @@ impl DgMesh {
     /// Positive definiteness of `K` (free bodies: of `K + s M` with `s` a 1e-8 fraction of the
     /// largest stiffness-to-mass ratio, which lifts the six rigid modes but not a negative
     /// eigenvalue of an insufficient penalty, whose size is that of the stiffness itself).
-    fn stiffness_is_positive_definite(&self) -> bool {
-        use faer::Side;
-        use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
-        use faer::sparse::{SparseColMat, SymbolicSparseColMat};
-        let pattern = AssemblyPattern::from_groups(self.num_nodes(), self.blocks.node_groups());
-        let ranks = BlockRanks::new(&self.blocks, &pattern);
-        let mut values = vec![0.0; pattern.nnz()];
+    /// `check` holds the pattern, ranks and symbolic factorization, shared by every η tried:
+    /// η changes values, never the pattern.
+    fn stiffness_is_positive_definite(&self, check: &mut DefinitenessCheck) -> Result<bool, DgError> {
+        let DefinitenessCheck { pattern, ranks, values, cholesky } = check;
         let identity = vec![Matrix3::identity(); self.num_frames()];
-        self.blocks.add_to_matrix(&identity, 1.0, &pattern, &ranks, &mut values);
+        values.fill(0.0);
+        self.blocks.add_to_matrix(&identity, 1.0, pattern, ranks, values);
         if !self.has_dirichlet {
-            let mut largest: Real = 0.0;
-            for col in 0..pattern.dim() {
-                for p in pattern.col_ptr()[col]..pattern.col_ptr()[col + 1] {
-                    if pattern.row_idx()[p] == col {
-                        largest = largest.max(values[p]);
-                    }
-                }
-            }
-            let shift = 1e-8 * largest;
-            for col in 0..pattern.dim() {
-                for p in pattern.col_ptr()[col]..pattern.col_ptr()[col + 1] {
-                    if pattern.row_idx()[p] == col {
-                        values[p] += shift;
-                    }
-                }
+            let diagonal: Vec<usize> = (0..pattern.dim())
+                .map(|d| {
+                    let node = (d / 3) as u32;
+                    let rank = pattern.rank(node, node).expect("diagonal is in the pattern");
+                    pattern.position(rank, node, d % 3, d % 3)
+                })
+                .collect();
+            let largest = diagonal.iter().map(|&p| values[p]).fold(0.0, Real::max);
+            for &p in &diagonal {
+                values[p] += 1e-8 * largest;
             }
         }
-        let dim = pattern.dim();
-        let symbolic =
-            SymbolicSparseColMat::new_checked(dim, dim, pattern.col_ptr().to_vec(), None, pattern.row_idx().to_vec());
-        let matrix = SparseColMat::new(symbolic, values);
-        let Ok(symbolic_llt) = SymbolicLlt::try_new(matrix.symbolic(), Side::Lower) else {
-            return false;
+        let cholesky = match cholesky {
+            Some(cholesky) => cholesky,
+            None => cholesky.insert(SparseCholesky::new(pattern).map_err(|e| DgError::Solver(e.to_string()))?),
         };
-        Llt::try_new_with_symbolic(symbolic_llt, matrix.as_ref(), Side::Lower).is_ok()
+        match cholesky.factorize(values) {
+            Ok(()) => Ok(true),
+            Err(CholeskyError::NotPositiveDefinite { .. }) => Ok(false),
+            Err(e) => Err(DgError::Solver(e.to_string())),
+        }
     }
 
     /// Element `e`'s outward faces as point loops.

@@ -4,13 +4,9 @@
 
 use crate::constraints::Constraints;
 use crate::error::StepErrorKind;
-use cleave_core::{AssemblyPattern, BlockRanks, Discretization, Embedding, Matrix3, Real};
-use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::linalg::cholesky::llt::factor::LltError;
-use faer::linalg::cholesky::llt::factor::LltRegularization;
-use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, factorize_symbolic_cholesky};
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
-use faer::{Conj, MatMut, Par, Side};
+use cleave_core::{
+    AssemblyPattern, BlockRanks, CholeskyError, Discretization, Embedding, Matrix3, Real, SparseCholesky,
+};
 
 /// Ranks of every (row, column) node pair of a list of embedding rows in the pattern.
 #[derive(Debug, Default)]
@@ -65,15 +61,7 @@ pub(crate) struct AssembledSystem {
     /// Positions of entries in a pinned row or column (zeroed) and of pinned diagonals (set to 1).
     pinned_off_diagonal: Vec<usize>,
     pinned_diagonal: Vec<usize>,
-    symbolic_matrix: SymbolicSparseColMat<usize>,
-    cholesky: Option<CholeskyStorage>,
-}
-
-struct CholeskyStorage {
-    symbolic: SymbolicCholesky<usize>,
-    factor_values: Vec<Real>,
-    scratch: MemBuffer,
-    factored: bool,
+    cholesky: Option<SparseCholesky>,
 }
 
 impl AssembledSystem {
@@ -100,7 +88,9 @@ impl AssembledSystem {
             pinned[d] = true;
         }
         let (mut pinned_off_diagonal, mut pinned_diagonal) = (Vec::new(), Vec::new());
-        for col in 0..dim {
+        // Only columns of pinned DOFs and rows of pinned DOFs hold such entries; skip the scan of
+        // every stored entry when nothing is pinned (DG and free bodies).
+        for col in (0..dim).filter(|_| !constraints.pinned_dofs.is_empty()) {
             for p in pattern.col_ptr()[col]..pattern.col_ptr()[col + 1] {
                 let row = pattern.row_idx()[p];
                 if pinned[row] || pinned[col] {
@@ -112,27 +102,7 @@ impl AssembledSystem {
                 }
             }
         }
-        let symbolic_matrix =
-            SymbolicSparseColMat::new_checked(dim, dim, pattern.col_ptr().to_vec(), None, pattern.row_idx().to_vec());
-        let cholesky = if with_cholesky {
-            let symbolic = factorize_symbolic_cholesky(
-                symbolic_matrix.as_ref(),
-                Side::Lower,
-                Default::default(),
-                Default::default(),
-            )
-            .map_err(|e| StepErrorKind::Solver(format!("symbolic Cholesky: {e:?}")))?;
-            let par = Par::rayon(0);
-            let scratch = MemBuffer::try_new(StackReq::any_of(&[
-                symbolic.factorize_numeric_llt_scratch::<Real>(par, Default::default()),
-                symbolic.solve_in_place_scratch::<Real>(1, par),
-            ]))
-            .map_err(|_| StepErrorKind::Solver("out of memory for the Cholesky workspace".into()))?;
-            let factor_values = vec![0.0; symbolic.len_val()];
-            Some(CholeskyStorage { symbolic, factor_values, scratch, factored: false })
-        } else {
-            None
-        };
+        let cholesky = if with_cholesky { Some(SparseCholesky::new(&pattern).map_err(solver_error)?) } else { None };
         let values = vec![0.0; pattern.nnz()];
         Ok(Self {
             pattern,
@@ -142,14 +112,13 @@ impl AssembledSystem {
             values,
             pinned_off_diagonal,
             pinned_diagonal,
-            symbolic_matrix,
             cholesky,
         })
     }
 
     /// Number of nonzeros of the factor, if factorized.
     pub(crate) fn factor_nnz(&self) -> Option<usize> {
-        self.cholesky.as_ref().map(|c| c.symbolic.len_val())
+        self.cholesky.as_ref().map(SparseCholesky::factor_nnz)
     }
 
     /// `values = c_m M + c_k K_R` (penalty rows are added by the caller afterwards).
@@ -190,31 +159,19 @@ impl AssembledSystem {
 
     /// Numeric factorization on the cached symbolic one.
     pub(crate) fn factorize(&mut self) -> Result<(), StepErrorKind> {
-        let storage = self.cholesky.as_mut().expect("factorize needs the Cholesky storage");
-        let matrix = SparseColMatRef::new(self.symbolic_matrix.as_ref(), &self.values);
-        let result = storage.symbolic.factorize_numeric_llt::<Real>(
-            &mut storage.factor_values,
-            matrix,
-            Side::Lower,
-            LltRegularization::default(),
-            Par::rayon(0),
-            MemStack::new(&mut storage.scratch),
-            Default::default(),
-        );
-        storage.factored = result.is_ok();
-        match result {
-            Ok(_) => Ok(()),
-            Err(LltError::NonPositivePivot { index }) => Err(StepErrorKind::NotPositiveDefinite { pivot: index }),
-        }
+        let cholesky = self.cholesky.as_mut().expect("factorize needs the Cholesky storage");
+        cholesky.factorize(&self.values).map_err(solver_error)
     }
 
     /// Solves in place with the last factorization.
     pub(crate) fn solve_in_place(&mut self, rhs: &mut [Real]) {
-        let storage = self.cholesky.as_mut().expect("solve needs the Cholesky storage");
-        assert!(storage.factored, "solve_in_place before a successful factorize");
-        let llt = LltRef::<'_, usize, Real>::new(&storage.symbolic, &storage.factor_values);
-        let n = rhs.len();
-        let rhs = MatMut::from_column_major_slice_mut(rhs, n, 1);
-        llt.solve_in_place_with_conj(Conj::No, rhs, Par::rayon(0), MemStack::new(&mut storage.scratch));
+        self.cholesky.as_mut().expect("solve needs the Cholesky storage").solve_in_place(rhs);
+    }
+}
+
+pub(crate) fn solver_error(error: CholeskyError) -> StepErrorKind {
+    match error {
+        CholeskyError::NotPositiveDefinite { pivot } => StepErrorKind::NotPositiveDefinite { pivot },
+        CholeskyError::Setup(message) => StepErrorKind::Solver(message),
     }
 }

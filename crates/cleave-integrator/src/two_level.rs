@@ -15,12 +15,8 @@
 
 use crate::constraints::PenaltyPins;
 use crate::error::StepErrorKind;
-use cleave_core::{AssemblyPattern, CoarseSpace, Discretization, Embedding, Matrix3, Real};
-use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
-use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, factorize_symbolic_cholesky};
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
-use faer::{Conj, MatMut, Par, Side};
+use crate::system::solver_error;
+use cleave_core::{AssemblyPattern, CoarseSpace, Discretization, Embedding, Matrix3, Real, SparseCholesky};
 use rayon::prelude::*;
 
 /// The coarse operator, its factorization and the transfer operators of one epoch.
@@ -30,9 +26,7 @@ pub(crate) struct TwoLevel {
     restriction: Embedding,
     /// Fine scalar DOFs that are pinned (`Z`).
     pinned: Vec<bool>,
-    symbolic: SymbolicCholesky<usize>,
-    factor_values: Vec<Real>,
-    scratch: MemBuffer,
+    cholesky: SparseCholesky,
     coarse: Vec<Real>,
     coarse_dofs: usize,
     factor_nnz: usize,
@@ -177,29 +171,8 @@ impl TwoLevel {
         }
 
         let dim = pattern.dim();
-        let symbolic_matrix =
-            SymbolicSparseColMat::new_checked(dim, dim, pattern.col_ptr().to_vec(), None, pattern.row_idx().to_vec());
-        let symbolic =
-            factorize_symbolic_cholesky(symbolic_matrix.as_ref(), Side::Lower, Default::default(), Default::default())
-                .map_err(|e| StepErrorKind::Solver(format!("coarse symbolic Cholesky: {e:?}")))?;
-        let par = Par::rayon(0);
-        let mut scratch = MemBuffer::try_new(StackReq::any_of(&[
-            symbolic.factorize_numeric_llt_scratch::<Real>(par, Default::default()),
-            symbolic.solve_in_place_scratch::<Real>(1, Par::Seq),
-        ]))
-        .map_err(|_| StepErrorKind::Solver("out of memory for the coarse Cholesky workspace".into()))?;
-        let mut factor_values = vec![0.0; symbolic.len_val()];
-        symbolic
-            .factorize_numeric_llt::<Real>(
-                &mut factor_values,
-                SparseColMatRef::new(symbolic_matrix.as_ref(), &values),
-                Side::Lower,
-                LltRegularization::default(),
-                par,
-                MemStack::new(&mut scratch),
-                Default::default(),
-            )
-            .map_err(|LltError::NonPositivePivot { index }| StepErrorKind::NotPositiveDefinite { pivot: index })?;
+        let mut cholesky = SparseCholesky::new(&pattern).map_err(solver_error)?;
+        cholesky.factorize(&values).map_err(solver_error)?;
 
         let mut lists: Vec<Vec<(u32, Real)>> = vec![Vec::new(); num_coarse];
         for k in 0..num_fine {
@@ -217,14 +190,12 @@ impl TwoLevel {
             weights.extend(list.iter().map(|e| e.1));
             restriction.push_row(&nodes, &weights);
         }
-        let factor_nnz = symbolic.len_val();
+        let factor_nnz = cholesky.factor_nnz();
         Ok(Self {
             prolongation,
             restriction,
             pinned: pinned.to_vec(),
-            symbolic,
-            factor_values,
-            scratch,
+            cholesky,
             coarse: vec![0.0; dim],
             coarse_dofs: dim,
             factor_nnz,
@@ -251,14 +222,7 @@ impl TwoLevel {
                 }
             }
         });
-        let llt = LltRef::<'_, usize, Real>::new(&self.symbolic, &self.factor_values);
-        let n = self.coarse.len();
-        llt.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(&mut self.coarse, n, 1),
-            Par::Seq,
-            MemStack::new(&mut self.scratch),
-        );
+        self.cholesky.solve_in_place_sequential(&mut self.coarse);
         let (prolongation, coarse) = (&self.prolongation, &self.coarse);
         z.par_chunks_mut(3).enumerate().for_each(|(k, out)| {
             let (nodes, weights) = prolongation.row(k);

@@ -1,0 +1,308 @@
+//! Sparse Cholesky of a matrix on an [`AssemblyPattern`]: a fill-reducing order computed on the
+//! node graph, the symbolic factorization built once per pattern, then any number of numeric
+//! factorizations and solves on it (faer's supernodal LLᵀ).
+//!
+//! The order is computed on the pattern's node graph, not on the scalar matrix: nodes with
+//! identical neighbour sets (the basis functions of one DG element couple to exactly the same
+//! nodes) are merged into one vertex first, AMD orders that quotient graph, and the order is
+//! expanded to scalar DOFs with each node's three components consecutive. faer's default orders
+//! the `3n × 3n` scalar pattern, which holds 9 entries per node coupling and, for DG, `nb²` copies
+//! of every element coupling; AMD's supervariable detection finds the same elimination order
+//! (the factor has exactly the same nonzeros) but only after reading the whole scalar graph, which
+//! on the 10×10×10 quadratic DG grid of kaufmann2008 Table 1 took 2–3× longer than the whole
+//! symbolic factorization does now.
+
+use crate::Real;
+use crate::assembly::AssemblyPattern;
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
+use faer::perm::PermRef;
+use faer::sparse::linalg::amd;
+use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
+use faer::{Conj, MatMut, Par, Side};
+use std::collections::HashMap;
+
+/// Why a sparse Cholesky could not be set up or factorized.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CholeskyError {
+    /// A pivot was not positive: the matrix is not positive definite (scalar DOF `pivot` in the
+    /// elimination order).
+    #[error("the matrix is not positive definite (non-positive pivot at elimination step {pivot})")]
+    NotPositiveDefinite {
+        /// Elimination step of the failing pivot.
+        pivot: usize,
+    },
+    /// The ordering or symbolic factorization failed (index overflow, out of memory).
+    #[error("sparse Cholesky set-up: {0}")]
+    Setup(String),
+}
+
+/// The symbolic factorization of one pattern and the storage for its numeric factor.
+pub struct SparseCholesky {
+    matrix: SymbolicSparseColMat<usize>,
+    symbolic: SymbolicCholesky<usize>,
+    factor_values: Vec<Real>,
+    scratch: MemBuffer,
+    factored: bool,
+    order_groups: usize,
+}
+
+impl std::fmt::Debug for SparseCholesky {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SparseCholesky")
+            .field("dim", &self.matrix.nrows())
+            .field("factor_nnz", &self.factor_nnz())
+            .field("order_groups", &self.order_groups)
+            .finish()
+    }
+}
+
+impl SparseCholesky {
+    /// Orders the node graph of `pattern` and builds the symbolic factorization (once per pattern).
+    pub fn new(pattern: &AssemblyPattern) -> Result<Self, CholeskyError> {
+        let dim = pattern.dim();
+        let matrix =
+            SymbolicSparseColMat::new_checked(dim, dim, pattern.col_ptr().to_vec(), None, pattern.row_idx().to_vec());
+        let graph = QuotientGraph::new(pattern);
+        let ordering = graph.expand(&graph.amd()?);
+        let symbolic = factorize_symbolic_cholesky(
+            matrix.as_ref(),
+            Side::Lower,
+            SymmetricOrdering::Custom(PermRef::new_checked(&ordering.perm, &ordering.perm_inv, dim)),
+            Default::default(),
+        )
+        .map_err(|e| CholeskyError::Setup(format!("symbolic factorization: {e:?}")))?;
+        let order_groups = ordering.groups;
+        let par = Par::rayon(0);
+        let scratch = MemBuffer::try_new(StackReq::any_of(&[
+            symbolic.factorize_numeric_llt_scratch::<Real>(par, Default::default()),
+            symbolic.solve_in_place_scratch::<Real>(1, par),
+        ]))
+        .map_err(|_| CholeskyError::Setup("out of memory for the Cholesky workspace".into()))?;
+        let factor_values = vec![0.0; symbolic.len_val()];
+        Ok(Self { matrix, symbolic, factor_values, scratch, factored: false, order_groups })
+    }
+
+    /// Nonzeros of the factor `L`.
+    pub fn factor_nnz(&self) -> usize {
+        self.symbolic.len_val()
+    }
+
+    /// Vertices of the quotient graph the ordering was computed on.
+    pub fn order_groups(&self) -> usize {
+        self.order_groups
+    }
+
+    /// Numeric factorization of the matrix with `values` on the pattern (both triangles stored;
+    /// the lower one is read).
+    pub fn factorize(&mut self, values: &[Real]) -> Result<(), CholeskyError> {
+        let matrix = SparseColMatRef::new(self.matrix.as_ref(), values);
+        let result = self.symbolic.factorize_numeric_llt::<Real>(
+            &mut self.factor_values,
+            matrix,
+            Side::Lower,
+            LltRegularization::default(),
+            Par::rayon(0),
+            MemStack::new(&mut self.scratch),
+            Default::default(),
+        );
+        self.factored = result.is_ok();
+        result
+            .map(|_| ())
+            .map_err(|LltError::NonPositivePivot { index }| CholeskyError::NotPositiveDefinite { pivot: index })
+    }
+
+    /// Solves `A x = rhs` in place with the last successful factorization, on all cores.
+    ///
+    /// # Panics
+    /// Before a successful [`factorize`](Self::factorize): a caller bug, not a user-input error.
+    pub fn solve_in_place(&mut self, rhs: &mut [Real]) {
+        self.solve_with(rhs, Par::rayon(0));
+    }
+
+    /// As [`solve_in_place`](Self::solve_in_place) on one thread (for small systems solved often,
+    /// such as a coarse-grid correction inside CG, where threading costs more than it saves).
+    pub fn solve_in_place_sequential(&mut self, rhs: &mut [Real]) {
+        self.solve_with(rhs, Par::Seq);
+    }
+
+    fn solve_with(&mut self, rhs: &mut [Real], par: Par) {
+        assert!(self.factored, "SparseCholesky::solve before a successful factorize");
+        let llt = LltRef::<'_, usize, Real>::new(&self.symbolic, &self.factor_values);
+        let n = rhs.len();
+        let rhs = MatMut::from_column_major_slice_mut(rhs, n, 1);
+        llt.solve_in_place_with_conj(Conj::No, rhs, par, MemStack::new(&mut self.scratch));
+    }
+}
+
+/// A scalar permutation (`perm[new] = old`), its inverse, and the size of the ordered graph.
+struct ScalarOrdering {
+    perm: Vec<usize>,
+    perm_inv: Vec<usize>,
+    groups: usize,
+}
+
+/// The pattern's node graph with indistinguishable nodes (identical closed neighbourhoods)
+/// merged: CSC adjacency of the groups (rows sorted, diagonal included) and each group's nodes.
+struct QuotientGraph {
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    members_offsets: Vec<usize>,
+    members: Vec<u32>,
+}
+
+impl QuotientGraph {
+    fn new(pattern: &AssemblyPattern) -> Self {
+        let n = pattern.num_nodes();
+        let mut group_of = vec![0u32; n];
+        let mut representatives: Vec<u32> = Vec::new();
+        {
+            let mut ids: HashMap<&[u32], u32> = HashMap::with_capacity(n);
+            for j in 0..n as u32 {
+                let next = representatives.len() as u32;
+                let id = *ids.entry(pattern.neighbours(j)).or_insert_with(|| {
+                    representatives.push(j);
+                    next
+                });
+                group_of[j as usize] = id;
+            }
+        }
+        let groups = representatives.len();
+        // Members of each group in node order (a counting sort by group).
+        let mut members_offsets = vec![0usize; groups + 1];
+        for &g in &group_of {
+            members_offsets[g as usize + 1] += 1;
+        }
+        for g in 0..groups {
+            members_offsets[g + 1] += members_offsets[g];
+        }
+        let mut members = vec![0u32; n];
+        let mut next_slot = members_offsets.clone();
+        for (j, &g) in group_of.iter().enumerate() {
+            members[next_slot[g as usize]] = j as u32;
+            next_slot[g as usize] += 1;
+        }
+        let mut col_ptr = Vec::with_capacity(groups + 1);
+        let mut row_idx = Vec::new();
+        col_ptr.push(0usize);
+        let mut column: Vec<usize> = Vec::new();
+        for &r in &representatives {
+            column.clear();
+            column.extend(pattern.neighbours(r).iter().map(|&k| group_of[k as usize] as usize));
+            column.sort_unstable();
+            column.dedup();
+            row_idx.extend_from_slice(&column);
+            col_ptr.push(row_idx.len());
+        }
+        Self { col_ptr, row_idx, members_offsets, members }
+    }
+
+    fn groups(&self) -> usize {
+        self.col_ptr.len() - 1
+    }
+
+    /// Expands a group order (`order[new] = old group`) to scalar DOFs.
+    fn expand(&self, order: &[usize]) -> ScalarOrdering {
+        let n = self.members.len();
+        let mut perm = Vec::with_capacity(3 * n);
+        for &g in order {
+            for &node in &self.members[self.members_offsets[g]..self.members_offsets[g + 1]] {
+                perm.extend((0..3).map(|c| 3 * node as usize + c));
+            }
+        }
+        let mut perm_inv = vec![0usize; 3 * n];
+        for (new, &old) in perm.iter().enumerate() {
+            perm_inv[old] = new;
+        }
+        ScalarOrdering { perm, perm_inv, groups: self.groups() }
+    }
+
+    /// Approximate minimum degree order of the groups.
+    fn amd(&self) -> Result<Vec<usize>, CholeskyError> {
+        let groups = self.groups();
+        let graph = SymbolicSparseColMatRef::new_checked(groups, groups, &self.col_ptr, None, &self.row_idx);
+        let mut order = vec![0usize; groups];
+        let mut inverse = vec![0usize; groups];
+        let mut memory = MemBuffer::try_new(amd::order_scratch::<usize>(groups, self.row_idx.len()))
+            .map_err(|_| CholeskyError::Setup("out of memory for the AMD workspace".into()))?;
+        amd::order(&mut order, &mut inverse, graph, amd::Control::default(), MemStack::new(&mut memory))
+            .map_err(|e| CholeskyError::Setup(format!("AMD ordering: {e:?}")))?;
+        Ok(order)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Matrix3;
+
+    fn assert_is_scalar_permutation(ordering: &ScalarOrdering, dim: usize) {
+        let mut seen = ordering.perm.clone();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..dim).collect::<Vec<_>>());
+        for (new, &old) in ordering.perm.iter().enumerate() {
+            assert_eq!(ordering.perm_inv[old], new);
+        }
+        for chunk in ordering.perm.chunks(3) {
+            assert!(chunk[0] % 3 == 0 && chunk[1] == chunk[0] + 1 && chunk[2] == chunk[0] + 2);
+        }
+    }
+
+    #[test]
+    fn nodes_with_identical_neighbourhoods_are_ordered_together() {
+        // Two "elements" of 3 nodes coupled through the group {2, 3}: nodes 0, 1 see {0,1,2};
+        // 2 sees {0,1,2,3} and 3 sees {2,3,4,5}, so only 0 ~ 1 and 4 ~ 5 merge.
+        let groups: [&[u32]; 3] = [&[0, 1, 2], &[3, 4, 5], &[2, 3]];
+        let pattern = AssemblyPattern::from_groups(6, groups.into_iter());
+        let graph = QuotientGraph::new(&pattern);
+        assert_eq!(graph.groups(), 4, "{{0,1}}, {{2}}, {{3}}, {{4,5}}");
+        for order in [graph.amd().unwrap(), (0..graph.groups()).collect()] {
+            let ordering = graph.expand(&order);
+            assert_is_scalar_permutation(&ordering, 18);
+            let position = |node: usize| ordering.perm_inv[3 * node] / 3;
+            assert_eq!(position(0).abs_diff(position(1)), 1);
+            assert_eq!(position(4).abs_diff(position(5)), 1);
+        }
+    }
+
+    /// The matrix `Σ_groups (I_g ⊗ B)` plus a diagonal shift, with `B` a fixed SPD 3×3 block
+    /// on every node pair of a group: SPD for a positive shift.
+    fn chain_system(shift: Real) -> (AssemblyPattern, Vec<Real>) {
+        let groups: Vec<[u32; 2]> = (0..9).map(|i| [i, i + 1]).collect();
+        let pattern = AssemblyPattern::from_groups(10, groups.iter().map(|g| &g[..]));
+        let mut values = vec![0.0; pattern.nnz()];
+        let b = Matrix3::new(2.0, 0.5, 0.0, 0.5, 3.0, 0.25, 0.0, 0.25, 1.5);
+        for g in &groups {
+            // A graph Laplacian per group, ⊗ B: PSD; the shift makes it definite.
+            for &i in g {
+                for &j in g {
+                    let sign = if i == j { 1.0 } else { -1.0 };
+                    let rank = pattern.rank(i, j).unwrap();
+                    pattern.add_block(&mut values, rank, j, &b, sign);
+                }
+            }
+        }
+        for j in 0..10u32 {
+            let rank = pattern.rank(j, j).unwrap();
+            pattern.add_block(&mut values, rank, j, &Matrix3::identity(), shift);
+        }
+        (pattern, values)
+    }
+
+    #[test]
+    fn solves_a_spd_system_to_round_off_and_rejects_an_indefinite_one() {
+        let (pattern, values) = chain_system(0.1);
+        let mut cholesky = SparseCholesky::new(&pattern).unwrap();
+        cholesky.factorize(&values).unwrap();
+        let x_true: Vec<Real> = (0..30).map(|i| (i as Real * 0.37).sin()).collect();
+        let mut b = vec![0.0; 30];
+        pattern.mul_vec(&values, &x_true, &mut b);
+        cholesky.solve_in_place(&mut b);
+        let error = b.iter().zip(&x_true).map(|(a, t)| (a - t).abs()).fold(0.0, Real::max);
+        assert!(error < 1e-10, "max error {error}");
+        // A negative shift larger than the smallest Laplacian eigenvalue (0) makes it indefinite.
+        let (_, indefinite) = chain_system(-0.1);
+        assert!(matches!(cholesky.factorize(&indefinite), Err(CholeskyError::NotPositiveDefinite { .. })));
+    }
+}
