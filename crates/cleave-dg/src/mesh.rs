@@ -36,6 +36,13 @@ pub struct DgOptions {
     pub penalty: Real,
     /// How often η may be doubled while the stiffness is not positive definite.
     pub max_doublings: u32,
+    /// Factor applied to the first positive definite η (1: the paper's rule). The doubling stops
+    /// just above the coercivity threshold, where the error is smallest; corotated dynamics of
+    /// nearly incompressible IP models needs head room there, because warping the element and
+    /// face terms by different rotations breaks the balance that makes `K` definite at rest
+    /// (docs/math/dg.md §9 and docs/results/stability.md). `K(η)` is definite for every η above
+    /// the first definite one, so no further check is needed.
+    pub penalty_margin: Real,
 }
 
 impl DgOptions {
@@ -47,7 +54,7 @@ impl DgOptions {
             Flux::InteriorPenalty => 1.0,
             Flux::BabuskaZlamal => 10.0,
         };
-        Self { degree, flux, penalty, max_doublings: 24 }
+        Self { degree, flux, penalty, max_doublings: 24, penalty_margin: 1.0 }
     }
 }
 
@@ -78,6 +85,9 @@ pub enum DgError {
     /// Non-positive or non-finite penalty.
     #[error("penalty η = {0} must be positive and finite")]
     Penalty(Real),
+    /// A penalty margin below 1 or not finite.
+    #[error("penalty margin {0} must be a finite number ≥ 1")]
+    PenaltyMargin(Real),
     /// An element whose Gram matrix is singular.
     #[error("element {element} is degenerate (volume {volume:e} m³): its basis cannot be orthonormalized")]
     DegenerateElement {
@@ -185,6 +195,9 @@ impl DgMesh {
         }
         if !(options.penalty > 0.0 && options.penalty.is_finite()) {
             return Err(DgError::Penalty(options.penalty));
+        }
+        if !(options.penalty_margin >= 1.0 && options.penalty_margin.is_finite()) {
+            return Err(DgError::PenaltyMargin(options.penalty_margin));
         }
         mesh.validate(1e-8)?;
         let degree = options.degree;
@@ -313,6 +326,10 @@ impl DgMesh {
             }
             this.penalty *= 2.0;
             this.doublings += 1;
+        }
+        if options.penalty_margin > 1.0 {
+            this.penalty *= options.penalty_margin;
+            this.blocks = build_blocks(num_nodes, &element_stiffness, &face_terms, this.penalty)?;
         }
         this.penalty_search_seconds = search.elapsed().as_secs_f64();
         let mut dirichlet_load = vec![0.0; 3 * num_nodes];

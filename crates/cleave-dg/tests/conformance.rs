@@ -158,3 +158,23 @@ fn near_incompressible_penalty_doubling_reaches_a_positive_definite_matrix() {
         assert!(errors.l2_relative.is_finite() && errors.l2_relative < 1.0, "{errors:?}");
     }
 }
+
+#[test]
+fn penalty_margin_scales_the_first_definite_penalty_and_keeps_consistency() {
+    // The margin multiplies the η the doubling stops at; IP stays consistent for any η above the
+    // threshold, so the affine patch test is still exact, and a margin below 1 is refused with
+    // its value.
+    let a = Matrix3::new(0.01, 0.02, -0.005, 0.003, -0.01, 0.004, 0.0, 0.006, 0.02);
+    let dirichlet = WeakDirichlet { on_boundary: &|_| true, data: &affine };
+    let plain = DgMesh::new(grid(), material(), DgOptions::new(1, Flux::InteriorPenalty), Some(&dirichlet)).unwrap();
+    let options = DgOptions { penalty_margin: 4.0, ..DgOptions::new(1, Flux::InteriorPenalty) };
+    let wide = DgMesh::new(grid(), material(), options, Some(&dirichlet)).unwrap();
+    assert_eq!(wide.penalty(), 4.0 * plain.penalty());
+    assert_eq!(wide.penalty_doublings(), plain.penalty_doublings());
+    let solution = cleave_integrator::solve_static(&wide, wide.dirichlet_load(), &[]).unwrap();
+    let errors = field_errors(&wide, &solution.displacement, 4, &|p| (affine(p), a));
+    assert!(errors.l2_relative < 1e-9 && errors.h1_relative < 1e-9, "{errors:?}");
+    let refused = DgOptions { penalty_margin: 0.5, ..DgOptions::new(1, Flux::InteriorPenalty) };
+    let error = DgMesh::new(grid(), material(), refused, Some(&dirichlet)).unwrap_err();
+    assert!(error.to_string().contains("0.5"), "{error}");
+}

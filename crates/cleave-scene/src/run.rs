@@ -289,7 +289,7 @@ impl Simulation {
                 let (count, h) = (voxels.num_cubes(), voxels.cell_size());
                 (Box::new(voxels), count, h, vertices, triangles)
             }
-            DiscretizationSpec::Dg { cell_size, target_elements, degree, flux, penalty } => {
+            DiscretizationSpec::Dg { cell_size, target_elements, degree, flux, penalty, penalty_margin } => {
                 let (poly, h, vertices, triangles) = match surface {
                     Ok((mesh, resolved)) => {
                         let mesh_error =
@@ -321,6 +321,9 @@ impl Simulation {
                     FluxSpec::BabuskaZlamal => Flux::BabuskaZlamal,
                 };
                 let mut options = DgOptions::new(*degree, flux);
+                if let Some(margin) = penalty_margin {
+                    options.penalty_margin = margin.0;
+                }
                 if let Some(eta) = penalty {
                     options.penalty = eta.0;
                 }

@@ -173,6 +173,10 @@ pub enum DiscretizationSpec {
         /// Starting penalty η (default: 1 for IP, 10 for BZ); doubled until positive definite.
         #[serde(default)]
         penalty: Option<Positive>,
+        /// Factor ≥ 1 on the first positive definite η (default 1, the paper's rule); head room
+        /// for corotated dynamics of nearly incompressible IP models (docs/math/dg.md §9).
+        #[serde(default)]
+        penalty_margin: Option<Positive>,
     },
 }
 
