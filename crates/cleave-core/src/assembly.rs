@@ -62,6 +62,12 @@ impl AssemblyPattern {
         Self { num_nodes, neighbour_offsets, neighbours, col_ptr, row_idx }
     }
 
+    /// A zeroed value array for this pattern whose memory is already resident (see
+    /// [`resident_zeros`]), so the first assembly does not pay for the page faults.
+    pub fn new_values(&self) -> Vec<Real> {
+        resident_zeros(self.nnz())
+    }
+
     /// Number of 3-vector nodes (the matrix is `3n × 3n`).
     pub fn num_nodes(&self) -> usize {
         self.num_nodes
@@ -138,6 +144,16 @@ impl AssemblyPattern {
             }
         }
     }
+}
+
+/// `len` zeros written one by one into fresh memory. `vec![0.0; len]` gets zeroed pages from the
+/// allocator lazily, so the first pass that writes them (the first assembly or factorization of
+/// an epoch, often the only one of a static solve) would take the page faults: hundreds of
+/// megabytes for a quadratic DG factor. Built once per epoch, it keeps that cost in the set-up.
+pub fn resident_zeros(len: usize) -> Vec<Real> {
+    let mut values = Vec::with_capacity(len);
+    values.resize(len, 0.0);
+    values
 }
 
 #[cfg(test)]

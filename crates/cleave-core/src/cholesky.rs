@@ -80,7 +80,7 @@ impl SparseCholesky {
             symbolic.solve_in_place_scratch::<Real>(1, par),
         ]))
         .map_err(|_| CholeskyError::Setup("out of memory for the Cholesky workspace".into()))?;
-        let factor_values = vec![0.0; symbolic.len_val()];
+        let factor_values = crate::assembly::resident_zeros(symbolic.len_val());
         Ok(Self { matrix, symbolic, factor_values, scratch, factored: false, order_groups })
     }
 

@@ -315,7 +315,7 @@ impl DgMesh {
             let check = check.get_or_insert_with(|| {
                 let pattern = AssemblyPattern::from_groups(num_nodes, this.blocks.node_groups());
                 let ranks = BlockRanks::new(&this.blocks, &pattern);
-                let values = vec![0.0; pattern.nnz()];
+                let values = pattern.new_values();
                 DefinitenessCheck { pattern, ranks, values, cholesky: None }
             });
             if this.stiffness_is_positive_definite(check)? {

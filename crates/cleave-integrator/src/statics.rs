@@ -53,12 +53,16 @@ pub fn solve_static(
         g[d] = value;
     }
     let mut kg = vec![0.0; n];
-    system.pattern.mul_vec(&system.values, &g, &mut kg);
+    if prescribed.iter().any(|&(_, value)| value != 0.0) {
+        system.pattern.mul_vec(&system.values, &g, &mut kg);
+    }
     let mut rhs: Vec<Real> = load.iter().zip(&kg).map(|(f, kg)| f - kg).collect();
     for &(d, value) in prescribed {
         rhs[d] = value;
     }
-    let stiffness = system.values.clone();
+    // The strain energy needs K without the pinned rows replaced; keep a copy only when there
+    // are pins to replace (DG imposes its Dirichlet data weakly and has none).
+    let unpinned = (!prescribed.is_empty()).then(|| system.values.clone());
     system.apply_pins();
     let seconds_assemble = clock.elapsed().as_secs_f64();
 
@@ -70,7 +74,7 @@ pub fn solve_static(
         return Err(StepErrorKind::NotFinite { dof });
     }
     let mut ku = vec![0.0; n];
-    system.pattern.mul_vec(&stiffness, &rhs, &mut ku);
+    system.pattern.mul_vec(unpinned.as_deref().unwrap_or(&system.values), &rhs, &mut ku);
     let strain_energy = 0.5 * ku.iter().zip(&rhs).map(|(a, b)| a * b).sum::<Real>();
     Ok(StaticSolution {
         nnz: system.pattern.nnz(),

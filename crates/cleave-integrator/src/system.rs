@@ -103,7 +103,7 @@ impl AssembledSystem {
             }
         }
         let cholesky = if with_cholesky { Some(SparseCholesky::new(&pattern).map_err(solver_error)?) } else { None };
-        let values = vec![0.0; pattern.nnz()];
+        let values = pattern.new_values();
         Ok(Self {
             pattern,
             block_ranks,

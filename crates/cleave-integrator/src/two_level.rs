@@ -126,7 +126,7 @@ impl TwoLevel {
         }
         let pattern = AssemblyPattern::from_groups(num_coarse, groups.iter().map(Vec::as_slice));
         drop(groups);
-        let mut values = vec![0.0; pattern.nnz()];
+        let mut values = pattern.new_values();
         let mut galerkin =
             Galerkin { prolongation: &prolongation, pinned, pattern: &pattern, union, local: Vec::new() };
         for b in 0..blocks.len() {
