@@ -112,12 +112,55 @@ pub enum DgError {
     Solver(String),
 }
 
-/// What the penalty doubling's definiteness check keeps between the η it tries.
+/// The penalty doubling's test of positive definiteness of `K`, or for free bodies of `K + s I`
+/// with `s` a 1e-8 fraction of the largest diagonal entry, which lifts the six rigid modes but not
+/// a negative eigenvalue of an insufficient penalty, whose size is that of the stiffness itself
+/// (docs/math/dg.md §5). Built at the first η and kept for the next: η changes values, never
+/// the pattern, so the pattern, ranks, diagonal positions and symbolic factorization are reused.
 struct DefinitenessCheck {
     pattern: AssemblyPattern,
     ranks: BlockRanks,
     values: Vec<Real>,
-    cholesky: Option<SparseCholesky>,
+    identity: Vec<Matrix3<Real>>,
+    /// Positions of the diagonal entries when `K` needs the shift (free bodies), else empty.
+    shifted_diagonal: Vec<usize>,
+    cholesky: SparseCholesky,
+}
+
+impl DefinitenessCheck {
+    fn new(blocks: &BlockSet, num_nodes: usize, num_frames: usize, free_body: bool) -> Result<Self, DgError> {
+        let pattern = AssemblyPattern::from_groups(num_nodes, blocks.node_groups());
+        let ranks = BlockRanks::new(blocks, &pattern);
+        let shifted_diagonal = if free_body {
+            (0..pattern.dim())
+                .map(|d| {
+                    let node = (d / 3) as u32;
+                    let rank = pattern.rank(node, node).expect("diagonal is in the pattern");
+                    pattern.position(rank, node, d % 3, d % 3)
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let cholesky = SparseCholesky::new(&pattern).map_err(|e| DgError::Solver(e.to_string()))?;
+        let values = pattern.new_values();
+        Ok(Self { pattern, ranks, values, identity: vec![Matrix3::identity(); num_frames], shifted_diagonal, cholesky })
+    }
+
+    /// Whether the stiffness of `blocks` (same pattern as at construction) is positive definite.
+    fn holds(&mut self, blocks: &BlockSet) -> Result<bool, DgError> {
+        self.values.fill(0.0);
+        blocks.add_to_matrix(&self.identity, 1.0, &self.pattern, &self.ranks, &mut self.values);
+        let largest = self.shifted_diagonal.iter().map(|&p| self.values[p]).fold(0.0, Real::max);
+        for &p in &self.shifted_diagonal {
+            self.values[p] += 1e-8 * largest;
+        }
+        match self.cholesky.factorize(&self.values) {
+            Ok(()) => Ok(true),
+            Err(CholeskyError::NotPositiveDefinite { .. }) => Ok(false),
+            Err(e) => Err(DgError::Solver(e.to_string())),
+        }
+    }
 }
 
 /// `visit(element, point, weight, ψ(point), ∇ψ(point))` of [`DgMesh::for_each_quadrature_point`].
@@ -312,13 +355,16 @@ impl DgMesh {
             if options.flux == Flux::BabuskaZlamal {
                 break;
             }
-            let check = check.get_or_insert_with(|| {
-                let pattern = AssemblyPattern::from_groups(num_nodes, this.blocks.node_groups());
-                let ranks = BlockRanks::new(&this.blocks, &pattern);
-                let values = pattern.new_values();
-                DefinitenessCheck { pattern, ranks, values, cholesky: None }
-            });
-            if this.stiffness_is_positive_definite(check)? {
+            let check = match &mut check {
+                Some(check) => check,
+                None => check.insert(DefinitenessCheck::new(
+                    &this.blocks,
+                    num_nodes,
+                    this.num_frames(),
+                    !this.has_dirichlet,
+                )?),
+            };
+            if check.holds(&this.blocks)? {
                 break;
             }
             if this.doublings >= options.max_doublings {
@@ -397,40 +443,6 @@ impl DgMesh {
     /// Values and gradients of element `e`'s basis at `p` (buffers of `basis_size()`).
     pub fn evaluate_basis(&self, e: usize, p: &Point3<Real>, values: &mut [Real], gradients: &mut [Vector3<Real>]) {
         self.bases[e].evaluate(&self.exps, p, values, gradients);
-    }
-
-    /// Positive definiteness of `K` (free bodies: of `K + s M` with `s` a 1e-8 fraction of the
-    /// largest stiffness-to-mass ratio, which lifts the six rigid modes but not a negative
-    /// eigenvalue of an insufficient penalty, whose size is that of the stiffness itself).
-    /// `check` holds the pattern, ranks and symbolic factorization, shared by every η tried:
-    /// η changes values, never the pattern.
-    fn stiffness_is_positive_definite(&self, check: &mut DefinitenessCheck) -> Result<bool, DgError> {
-        let DefinitenessCheck { pattern, ranks, values, cholesky } = check;
-        let identity = vec![Matrix3::identity(); self.num_frames()];
-        values.fill(0.0);
-        self.blocks.add_to_matrix(&identity, 1.0, pattern, ranks, values);
-        if !self.has_dirichlet {
-            let diagonal: Vec<usize> = (0..pattern.dim())
-                .map(|d| {
-                    let node = (d / 3) as u32;
-                    let rank = pattern.rank(node, node).expect("diagonal is in the pattern");
-                    pattern.position(rank, node, d % 3, d % 3)
-                })
-                .collect();
-            let largest = diagonal.iter().map(|&p| values[p]).fold(0.0, Real::max);
-            for &p in &diagonal {
-                values[p] += 1e-8 * largest;
-            }
-        }
-        let cholesky = match cholesky {
-            Some(cholesky) => cholesky,
-            None => cholesky.insert(SparseCholesky::new(pattern).map_err(|e| DgError::Solver(e.to_string()))?),
-        };
-        match cholesky.factorize(values) {
-            Ok(()) => Ok(true),
-            Err(CholeskyError::NotPositiveDefinite { .. }) => Ok(false),
-            Err(e) => Err(DgError::Solver(e.to_string())),
-        }
     }
 
     /// Element `e`'s outward faces as point loops.

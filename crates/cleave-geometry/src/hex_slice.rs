@@ -163,17 +163,9 @@ pub fn hex_slice_with(
     Err(GeometryError::NoGenericGridShift { cell_size, attempts: SHIFT_ATTEMPTS })
 }
 
-/// Area of the smallest face (Newell, about its first vertex).
+/// Area of the smallest face.
 fn smallest_face_area(mesh: &PolyhedralMesh) -> f64 {
-    mesh.faces
-        .iter()
-        .map(|f| {
-            let p = |k: usize| mesh.vertices[f.polygon[k] as usize];
-            let area: Vector3<f64> =
-                (1..f.polygon.len().saturating_sub(1)).map(|k| (p(k) - p(0)).cross(&(p(k + 1) - p(0)))).sum();
-            area.norm() / 2.0
-        })
-        .fold(f64::INFINITY, f64::min)
+    mesh.faces.iter().map(|f| mesh.polygon_area(&f.polygon)).fold(f64::INFINITY, f64::min)
 }
 
 /// A vertex of the sliced mesh, named by the features whose intersection it is. Every vertex

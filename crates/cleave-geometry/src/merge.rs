@@ -5,8 +5,6 @@
 use std::cmp::{Ordering, Reverse};
 use std::collections::{BTreeMap, BinaryHeap};
 
-use nalgebra::Vector3;
-
 use crate::moments::{Frame, try_element_moments_from_faces};
 use crate::{GeometryError, PolyhedralMesh};
 
@@ -109,7 +107,7 @@ pub fn merge_small_elements(mesh: &mut PolyhedralMesh, min_volume: f64) -> Resul
     let mut shared: Vec<BTreeMap<u32, f64>> = vec![BTreeMap::new(); n];
     for f in &mesh.faces {
         if let Some(outer) = f.outer.filter(|&o| o != f.inner) {
-            let area = polygon_area(mesh, &f.polygon);
+            let area = mesh.polygon_area(&f.polygon);
             *shared[f.inner as usize].entry(outer).or_default() += area;
             *shared[outer as usize].entry(f.inner).or_default() += area;
         }
@@ -210,12 +208,4 @@ fn element_volumes(mesh: &PolyhedralMesh) -> Result<Vec<f64>, GeometryError> {
             Ok(moments[0])
         })
         .collect()
-}
-
-/// Area of a planar polygon (Newell, about its first vertex so small faces far from the
-/// origin keep their precision).
-fn polygon_area(mesh: &PolyhedralMesh, polygon: &[u32]) -> f64 {
-    let p = |k: usize| mesh.vertices[polygon[k] as usize] - mesh.vertices[polygon[0] as usize];
-    let twice: Vector3<f64> = (1..polygon.len().saturating_sub(1)).map(|k| p(k).cross(&p(k + 1))).sum();
-    twice.norm() / 2.0
 }

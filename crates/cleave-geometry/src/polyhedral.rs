@@ -45,6 +45,14 @@ pub struct ElementFace<'a> {
 }
 
 impl PolyhedralMesh {
+    /// Area of a planar polygon of this mesh's vertices (Newell's formula about its first vertex,
+    /// so small faces far from the origin keep their precision).
+    pub fn polygon_area(&self, polygon: &[u32]) -> f64 {
+        let p = |k: usize| self.vertices[polygon[k] as usize] - self.vertices[polygon[0] as usize];
+        let twice: Vector3<f64> = (1..polygon.len().saturating_sub(1)).map(|k| p(k).cross(&p(k + 1))).sum();
+        twice.norm() / 2.0
+    }
+
     /// The box `[origin, origin + h·dims]` cut into `dims[0]·dims[1]·dims[2]` cubes of edge
     /// `h`; element `(i, j, k)` has index `i + dims[0]·(j + dims[1]·k)`.
     pub fn grid(origin: Point3<f64>, h: f64, dims: [usize; 3]) -> Self {

@@ -1,6 +1,6 @@
 //! Step failures: every way a step can go wrong, named with the step it happened in.
 
-use cleave_core::Real;
+use cleave_core::{CholeskyError, Real};
 
 /// A failed step: what happened and in which step (0-based).
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -50,4 +50,13 @@ pub enum StepErrorKind {
     /// Something else from the sparse solver.
     #[error("sparse solver failure: {0}")]
     Solver(String),
+}
+
+impl From<CholeskyError> for StepErrorKind {
+    fn from(error: CholeskyError) -> Self {
+        match error {
+            CholeskyError::NotPositiveDefinite { pivot } => StepErrorKind::NotPositiveDefinite { pivot },
+            CholeskyError::Setup(message) => StepErrorKind::Solver(message),
+        }
+    }
 }

@@ -4,9 +4,7 @@
 
 use crate::constraints::Constraints;
 use crate::error::StepErrorKind;
-use cleave_core::{
-    AssemblyPattern, BlockRanks, CholeskyError, Discretization, Embedding, Matrix3, Real, SparseCholesky,
-};
+use cleave_core::{AssemblyPattern, BlockRanks, Discretization, Embedding, Matrix3, Real, SparseCholesky};
 
 /// Ranks of every (row, column) node pair of a list of embedding rows in the pattern.
 #[derive(Debug, Default)]
@@ -88,9 +86,9 @@ impl AssembledSystem {
             pinned[d] = true;
         }
         let (mut pinned_off_diagonal, mut pinned_diagonal) = (Vec::new(), Vec::new());
-        // Only columns of pinned DOFs and rows of pinned DOFs hold such entries; skip the scan of
-        // every stored entry when nothing is pinned (DG and free bodies).
-        for col in (0..dim).filter(|_| !constraints.pinned_dofs.is_empty()) {
+        // The scan reads every stored entry: skip it when nothing is pinned (DG, free bodies).
+        let columns = if constraints.pinned_dofs.is_empty() { 0..0 } else { 0..dim };
+        for col in columns {
             for p in pattern.col_ptr()[col]..pattern.col_ptr()[col + 1] {
                 let row = pattern.row_idx()[p];
                 if pinned[row] || pinned[col] {
@@ -102,7 +100,7 @@ impl AssembledSystem {
                 }
             }
         }
-        let cholesky = if with_cholesky { Some(SparseCholesky::new(&pattern).map_err(solver_error)?) } else { None };
+        let cholesky = if with_cholesky { Some(SparseCholesky::new(&pattern)?) } else { None };
         let values = pattern.new_values();
         Ok(Self {
             pattern,
@@ -160,18 +158,11 @@ impl AssembledSystem {
     /// Numeric factorization on the cached symbolic one.
     pub(crate) fn factorize(&mut self) -> Result<(), StepErrorKind> {
         let cholesky = self.cholesky.as_mut().expect("factorize needs the Cholesky storage");
-        cholesky.factorize(&self.values).map_err(solver_error)
+        Ok(cholesky.factorize(&self.values)?)
     }
 
     /// Solves in place with the last factorization.
     pub(crate) fn solve_in_place(&mut self, rhs: &mut [Real]) {
         self.cholesky.as_mut().expect("solve needs the Cholesky storage").solve_in_place(rhs);
-    }
-}
-
-pub(crate) fn solver_error(error: CholeskyError) -> StepErrorKind {
-    match error {
-        CholeskyError::NotPositiveDefinite { pivot } => StepErrorKind::NotPositiveDefinite { pivot },
-        CholeskyError::Setup(message) => StepErrorKind::Solver(message),
     }
 }

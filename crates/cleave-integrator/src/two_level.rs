@@ -15,7 +15,6 @@
 
 use crate::constraints::PenaltyPins;
 use crate::error::StepErrorKind;
-use crate::system::solver_error;
 use cleave_core::{AssemblyPattern, CoarseSpace, Discretization, Embedding, Matrix3, Real, SparseCholesky};
 use rayon::prelude::*;
 
@@ -28,8 +27,6 @@ pub(crate) struct TwoLevel {
     pinned: Vec<bool>,
     cholesky: SparseCholesky,
     coarse: Vec<Real>,
-    coarse_dofs: usize,
-    factor_nnz: usize,
 }
 
 /// Coarse nodes of the union of the prolongation rows of `nodes`, sorted.
@@ -171,8 +168,8 @@ impl TwoLevel {
         }
 
         let dim = pattern.dim();
-        let mut cholesky = SparseCholesky::new(&pattern).map_err(solver_error)?;
-        cholesky.factorize(&values).map_err(solver_error)?;
+        let mut cholesky = SparseCholesky::new(&pattern)?;
+        cholesky.factorize(&values)?;
 
         let mut lists: Vec<Vec<(u32, Real)>> = vec![Vec::new(); num_coarse];
         for k in 0..num_fine {
@@ -190,21 +187,12 @@ impl TwoLevel {
             weights.extend(list.iter().map(|e| e.1));
             restriction.push_row(&nodes, &weights);
         }
-        let factor_nnz = cholesky.factor_nnz();
-        Ok(Self {
-            prolongation,
-            restriction,
-            pinned: pinned.to_vec(),
-            cholesky,
-            coarse: vec![0.0; dim],
-            coarse_dofs: dim,
-            factor_nnz,
-        })
+        Ok(Self { prolongation, restriction, pinned: pinned.to_vec(), cholesky, coarse: vec![0.0; dim] })
     }
 
     /// Coarse DOFs and nonzeros of the coarse factor.
     pub(crate) fn size(&self) -> (usize, usize) {
-        (self.coarse_dofs, self.factor_nnz)
+        (self.coarse.len(), self.cholesky.factor_nnz())
     }
 
     /// `z += Z P A_c⁻¹ Pᵀ Z r`.
