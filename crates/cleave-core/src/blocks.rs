@@ -8,6 +8,18 @@
 //!
 //! `R` is block-diagonal with the block's frame rotation on every node (identity for blocks
 //! without a frame, such as DG penalty terms).
+//!
+//! An *anchored* block couples an element's strain to a world-anchored quantity (DG's weak
+//! Dirichlet faces, `docs/math/dg.md` §6). It stores the non-symmetric `H` with `K = H + Hᵀ`;
+//! `H`'s column argument is the corotated displacement `b = Rᵀx − X`, its row argument the world
+//! displacement rotated into the frame, `a = Rᵀ(x − X)`:
+//!
+//! - internal force   `f_b = −R (H b + Hᵀ a)`
+//! - elastic energy   `E_b = aᵀ H b`
+//!
+//! with the same stiffness `R K Rᵀ`. With `R = I` both forms agree; unlike the plain form, the
+//! anchored one is unchanged when `x` and `X` are translated together, because `H` annihilates
+//! constant fields in its column (strain) argument.
 
 use crate::assembly::AssemblyPattern;
 use crate::scatter::ScatterPlan;
@@ -19,6 +31,7 @@ use nalgebra::DMatrix;
 pub const MAX_BLOCK_NODES: usize = 32;
 
 const NO_FRAME: u32 = u32::MAX;
+const NO_ANCHOR: u32 = u32::MAX;
 
 /// A malformed block (a backend bug, reported rather than panicking inside a kernel).
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -66,6 +79,8 @@ pub struct BlockRef<'a> {
     pub rest: &'a DMatrix<Real>,
     /// Index of the rotation frame warping this block, if any.
     pub frame: Option<u32>,
+    /// For an anchored block, `H` with `rest = H + Hᵀ` (module docs).
+    pub anchor: Option<&'a DMatrix<Real>>,
 }
 
 /// Blocks `{nodes, rest matrix id, frame}` over a library of rest matrices.
@@ -77,6 +92,9 @@ pub struct BlockSet {
     nodes: Vec<u32>,
     rest_ids: Vec<u32>,
     frames: Vec<u32>,
+    /// Per block, the index into `anchors` or `NO_ANCHOR`.
+    anchor_ids: Vec<u32>,
+    anchors: Vec<DMatrix<Real>>,
     plan: ScatterPlan,
 }
 
@@ -88,6 +106,8 @@ pub struct BlockSetBuilder {
     nodes: Vec<u32>,
     rest_ids: Vec<u32>,
     frames: Vec<u32>,
+    anchor_ids: Vec<u32>,
+    anchors: Vec<DMatrix<Real>>,
 }
 
 impl BlockSetBuilder {
@@ -116,6 +136,23 @@ impl BlockSetBuilder {
         self.offsets.push(self.nodes.len() as u32);
         self.rest_ids.push(rest);
         self.frames.push(frame.unwrap_or(NO_FRAME));
+        self.anchor_ids.push(NO_ANCHOR);
+    }
+
+    /// Appends an anchored block with the non-symmetric `h` (module docs): its rest matrix is
+    /// `h + hᵀ`, added to the library here.
+    pub fn push_anchored(&mut self, nodes: &[u32], h: DMatrix<Real>, frame: u32) -> Result<(), BlockSetError> {
+        if h.nrows() != h.ncols() {
+            let index = self.rest_matrices.len();
+            return Err(BlockSetError::BadRestMatrix { index, rows: h.nrows(), cols: h.ncols() });
+        }
+        let rest = self.add_rest_matrix(&h + h.transpose())?;
+        self.push(nodes, rest, Some(frame));
+        if let Some(last) = self.anchor_ids.last_mut() {
+            *last = self.anchors.len() as u32;
+        }
+        self.anchors.push(h);
+        Ok(())
     }
 
     /// Validates and plans the parallel scatter for a mesh of `num_nodes` nodes.
@@ -147,6 +184,8 @@ impl BlockSetBuilder {
             nodes: self.nodes,
             rest_ids: self.rest_ids,
             frames: self.frames,
+            anchor_ids: self.anchor_ids,
+            anchors: self.anchors,
             plan,
         })
     }
@@ -177,10 +216,12 @@ impl BlockSet {
     #[inline]
     pub fn block(&self, b: usize) -> BlockRef<'_> {
         let frame = self.frames[b];
+        let anchor = self.anchor_ids[b];
         BlockRef {
             nodes: &self.nodes[self.offsets[b] as usize..self.offsets[b + 1] as usize],
             rest: &self.rest_matrices[self.rest_ids[b] as usize],
             frame: (frame != NO_FRAME).then_some(frame),
+            anchor: (anchor != NO_ANCHOR).then(|| &self.anchors[anchor as usize]),
         }
     }
 
@@ -198,21 +239,31 @@ impl BlockSet {
         frame.map_or_else(Matrix3::identity, |f| rotations[f as usize])
     }
 
-    /// `out += −Σ_b R K (Rᵀ x_b − X_b)`: the internal elastic force at positions `x`.
+    /// `out += −Σ_b R K (Rᵀ x_b − X_b)`: the internal elastic force at positions `x` (anchored
+    /// blocks: `−R (H b + Hᵀ a)`, module docs).
     pub fn add_internal_force(&self, rotations: &[Matrix3<Real>], x: &[Real], rest: &[Real], out: &mut [Real]) {
         self.plan.scatter_add(out, |b, buf, base| {
             let block = self.block(b);
             let r = Self::rotation(rotations, block.frame);
-            let n = block.nodes.len();
+            let n = 3 * block.nodes.len();
             let mut local = [0.0; 3 * MAX_BLOCK_NODES];
-            for (a, &node) in block.nodes.iter().enumerate() {
-                let i = 3 * node as usize;
-                let p = r.tr_mul(&nalgebra::Vector3::new(x[i], x[i + 1], x[i + 2]));
-                for c in 0..3 {
-                    local[3 * a + c] = p[c] - rest[i + c];
+            corotated_displacement(&r, block.nodes, x, rest, &mut local[..n]);
+            match block.anchor {
+                None => apply_warped(block.rest, &r, &local[..n], block.nodes, -1.0, buf, base),
+                Some(h) => {
+                    let mut anchored = [0.0; 3 * MAX_BLOCK_NODES];
+                    rotated_displacement(&r, block.nodes, x, rest, &mut anchored[..n]);
+                    let mut y = [0.0; 3 * MAX_BLOCK_NODES];
+                    for row in 0..n {
+                        let mut sum = 0.0;
+                        for col in 0..n {
+                            sum += h[(row, col)] * local[col] + h[(col, row)] * anchored[col];
+                        }
+                        y[row] = sum;
+                    }
+                    scatter_rotated(&r, &y[..n], block.nodes, -1.0, buf, base);
                 }
             }
-            apply_warped(block.rest, &r, &local[..3 * n], block.nodes, -1.0, buf, base);
         });
     }
 
@@ -232,7 +283,7 @@ impl BlockSet {
         });
     }
 
-    /// `½ Σ_b (Rᵀ x_b − X_b)ᵀ K (Rᵀ x_b − X_b)`.
+    /// `½ Σ_b (Rᵀ x_b − X_b)ᵀ K (Rᵀ x_b − X_b)` (anchored blocks: `aᵀ H b`, module docs).
     pub fn elastic_energy(&self, rotations: &[Matrix3<Real>], x: &[Real], rest: &[Real]) -> Real {
         use rayon::prelude::*;
         (0..self.len())
@@ -242,23 +293,24 @@ impl BlockSet {
                 let r = Self::rotation(rotations, block.frame);
                 let n = 3 * block.nodes.len();
                 let mut local = [0.0; 3 * MAX_BLOCK_NODES];
-                for (a, &node) in block.nodes.iter().enumerate() {
-                    let i = 3 * node as usize;
-                    let p = r.tr_mul(&nalgebra::Vector3::new(x[i], x[i + 1], x[i + 2]));
-                    for c in 0..3 {
-                        local[3 * a + c] = p[c] - rest[i + c];
+                corotated_displacement(&r, block.nodes, x, rest, &mut local[..n]);
+                let (k, left, scale) = match block.anchor {
+                    None => (block.rest, local, 0.5),
+                    Some(h) => {
+                        let mut anchored = [0.0; 3 * MAX_BLOCK_NODES];
+                        rotated_displacement(&r, block.nodes, x, rest, &mut anchored[..n]);
+                        (h, anchored, 1.0)
                     }
-                }
-                let k = block.rest;
+                };
                 let mut e = 0.0;
                 for col in 0..n {
                     let mut kv = 0.0;
                     for row in 0..n {
-                        kv += k[(row, col)] * local[row];
+                        kv += left[row] * k[(row, col)];
                     }
                     e += kv * local[col];
                 }
-                0.5 * e
+                scale * e
             })
             .sum()
     }
@@ -426,6 +478,28 @@ impl BlockRanks {
     }
 }
 
+/// `local = Rᵀ x_b − X_b`, the corotated displacement of the block's nodes.
+#[inline]
+fn corotated_displacement(r: &Matrix3<Real>, nodes: &[u32], x: &[Real], rest: &[Real], local: &mut [Real]) {
+    for (a, &node) in nodes.iter().enumerate() {
+        let i = 3 * node as usize;
+        let p = r.tr_mul(&nalgebra::Vector3::new(x[i], x[i + 1], x[i + 2]));
+        for c in 0..3 {
+            local[3 * a + c] = p[c] - rest[i + c];
+        }
+    }
+}
+
+/// `local = Rᵀ (x_b − X_b)`, the world displacement rotated into the block's frame.
+#[inline]
+fn rotated_displacement(r: &Matrix3<Real>, nodes: &[u32], x: &[Real], rest: &[Real], local: &mut [Real]) {
+    for (a, &node) in nodes.iter().enumerate() {
+        let i = 3 * node as usize;
+        let u = nalgebra::Vector3::new(x[i] - rest[i], x[i + 1] - rest[i + 1], x[i + 2] - rest[i + 2]);
+        local[3 * a..3 * a + 3].copy_from_slice(r.tr_mul(&u).as_slice());
+    }
+}
+
 /// `buf[node] += s · R (K local)` for every node of the block.
 #[inline]
 fn apply_warped(
@@ -449,6 +523,12 @@ fn apply_warped(
         }
         *y_row = sum;
     }
+    scatter_rotated(r, &y[..n], nodes, scale, buf, base);
+}
+
+/// `buf[node] += s · R y_node` for every node of the block.
+#[inline]
+fn scatter_rotated(r: &Matrix3<Real>, y: &[Real], nodes: &[u32], scale: Real, buf: &mut [Real], base: usize) {
     for (a, &node) in nodes.iter().enumerate() {
         let v = r * nalgebra::Vector3::new(y[3 * a], y[3 * a + 1], y[3 * a + 2]);
         let i = 3 * node as usize - base;

@@ -45,20 +45,64 @@ pub enum DofRemap {
     Identity,
     /// New node `k` copies old node `src[k]` (duplicated nodes of a cut or fracture).
     Gather(Vec<u32>),
+    /// New node `k` = `Σ w · old node` over row `k` (nodes interpolated on a cut, re-projected DG
+    /// coefficients). A `Gather` is the special case of one weight 1 per row.
+    Linear(Embedding),
 }
 
 impl DofRemap {
     /// Maps a DOF vector of the old epoch to the new one.
     pub fn apply(&self, old: &[Real]) -> Vec<Real> {
+        let mut new = Vec::new();
+        self.apply_into(old, &mut new);
+        new
+    }
+
+    /// Maps a DOF vector of the old epoch into `new` (cleared and refilled; its allocation is
+    /// reused).
+    pub fn apply_into(&self, old: &[Real], new: &mut Vec<Real>) {
+        new.clear();
         match self {
-            DofRemap::Identity => old.to_vec(),
+            DofRemap::Identity => new.extend_from_slice(old),
             DofRemap::Gather(src) => {
-                let mut new = Vec::with_capacity(3 * src.len());
                 for &s in src {
                     new.extend_from_slice(&old[3 * s as usize..3 * s as usize + 3]);
                 }
-                new
             }
+            DofRemap::Linear(rows) => {
+                for k in 0..rows.len() {
+                    let p = rows.point(old, k);
+                    new.extend_from_slice(&[p.x, p.y, p.z]);
+                }
+            }
+        }
+    }
+
+    /// Number of nodes after the change, given the number before.
+    pub fn new_num_nodes(&self, old_num_nodes: usize) -> usize {
+        match self {
+            DofRemap::Identity => old_num_nodes,
+            DofRemap::Gather(src) => src.len(),
+            DofRemap::Linear(rows) => rows.len(),
+        }
+    }
+}
+
+/// How rotation frames map across a topology change (warm starts for `write_rotations`).
+#[derive(Clone, Debug, PartialEq)]
+pub enum FrameRemap {
+    /// Same frames as before.
+    Identity,
+    /// New frame `k` starts from the rotation of old frame `src[k]` (the element it was cut from).
+    Gather(Vec<u32>),
+}
+
+impl FrameRemap {
+    /// Maps the rotations of the old epoch to the new one.
+    pub fn apply(&self, old: &[Matrix3<Real>]) -> Vec<Matrix3<Real>> {
+        match self {
+            FrameRemap::Identity => old.to_vec(),
+            FrameRemap::Gather(src) => src.iter().map(|&s| old[s as usize]).collect(),
         }
     }
 }
@@ -70,6 +114,8 @@ pub struct TopologyChange {
     pub epoch: u64,
     /// How to carry `x`, `v` and any history across.
     pub remap: DofRemap,
+    /// How to carry the rotation frames across.
+    pub frames: FrameRemap,
     /// Whether the stiffness pattern changed (so symbolic factorizations must be redone).
     pub pattern_changed: bool,
 }
@@ -82,7 +128,7 @@ pub enum TopologyError {
     Invalid(String),
 }
 
-/// A cutting surface.
+/// A cutting surface in rest (material) coordinates.
 #[derive(Clone, Debug, PartialEq)]
 pub enum CutSurface {
     /// The plane through `point` with normal `normal` (need not be unit).
@@ -92,6 +138,9 @@ pub enum CutSurface {
         /// its normal
         normal: Vector3<Real>,
     },
+    /// A triangle soup: arbitrary triangles, possibly open, non-manifold, self-intersecting or
+    /// degenerate (zero area). Material is separated exactly where a triangle covers it.
+    Triangles(Vec<[Point3<Real>; 3]>),
 }
 
 /// Backends that can be cut by a surface.

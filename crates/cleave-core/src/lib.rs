@@ -20,7 +20,7 @@ pub use assembly::AssemblyPattern;
 pub use blocks::{BlockRanks, BlockRef, BlockSet, BlockSetBuilder, BlockSetError, MAX_BLOCK_NODES};
 pub use cholesky::{CholeskyError, SparseCholesky};
 pub use discretization::{
-    CoarseSpace, CutSurface, Cuttable, Discretization, DofRemap, FieldSample, Fracturable, Refinable, RotationStats,
+    CoarseSpace, CutSurface, Cuttable, Discretization, DofRemap, FieldSample, FrameRemap, Fracturable, Refinable, RotationStats,
     TopologyChange, TopologyError,
 };
 pub use embedding::{EmbedError, Embedding};

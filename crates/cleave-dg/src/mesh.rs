@@ -172,6 +172,9 @@ struct FaceTerms {
     nodes: Vec<u32>,
     /// Symmetric consistency parts warped by an element's frame: (matrix, frame element).
     warped: Vec<(DMatrix<Real>, u32)>,
+    /// On a Dirichlet face, the consistency part as an anchored block: (`H` with `K = H + Hᵀ`,
+    /// frame element), docs/math/dg.md §6.
+    anchored: Option<(DMatrix<Real>, u32)>,
     /// Penalty matrix for η = 1 (unwarped).
     unit_penalty: DMatrix<Real>,
 }
@@ -678,14 +681,22 @@ fn face_terms(
     let integrals = face_integrals(mesh, f, &sides, exps);
     let unit_penalty = penalty_matrix(&integrals, signs, eta_f);
     let mut warped = Vec::new();
+    let mut anchored = None;
     if flux == Flux::InteriorPenalty {
         let t = lame_tensor(material, &normal);
-        for (trial, &frame) in elements.iter().enumerate() {
-            warped.push((consistency_matrix(&integrals, &t, signs, average, trial), frame as u32));
+        if let [frame] = elements[..] {
+            // The jump against world-anchored data must not be corotated with the element
+            // (docs/math/dg.md §6): an anchored block.
+            anchored = Some((consistency_half(&integrals, &t, signs, average, 0), frame as u32));
+        } else {
+            for (trial, &frame) in elements.iter().enumerate() {
+                let half = consistency_half(&integrals, &t, signs, average, trial);
+                warped.push((&half + half.transpose(), frame as u32));
+            }
         }
     }
     let nodes = elements.iter().flat_map(|&e| (0..nb).map(move |i| e as u32 * nb + i)).collect();
-    Some(FaceTerms { nodes, warped, unit_penalty })
+    Some(FaceTerms { nodes, warped, anchored, unit_penalty })
 }
 
 /// `η_f ∫ ⟦u⟧ : ⟦v⟧`: `[(s,i,a),(t,j,a)] = η_f sgn_s sgn_t P^{st}_{ij}`.
@@ -709,9 +720,10 @@ fn penalty_matrix(integrals: &FaceIntegrals, signs: &[Real], eta_f: Real) -> DMa
     k
 }
 
-/// The part of `K_f1 + K_f2` that uses the strain of side `trial`:
-/// `K1[(s,i,a),(trial,j,b)] = −w sgn_s Σ_d T_abd Q^{s,trial}_{ij,d}` plus its transpose.
-fn consistency_matrix(
+/// The part of `K_f1` that uses the strain of side `trial`:
+/// `K1[(s,i,a),(trial,j,b)] = −w sgn_s Σ_d T_abd Q^{s,trial}_{ij,d}` (rows: the jump of the test
+/// function, columns: the strain of the trial function); its part of `K_f1 + K_f2` is `K1 + K1ᵀ`.
+fn consistency_half(
     integrals: &FaceIntegrals,
     t: &[[[Real; 3]; 3]; 3],
     signs: &[Real],
@@ -733,8 +745,7 @@ fn consistency_matrix(
             }
         }
     }
-    let kt = k.transpose();
-    k + kt
+    k
 }
 
 fn build_blocks(
@@ -754,6 +765,9 @@ fn build_blocks(
         for (k, frame) in &terms.warped {
             let id = builder.add_rest_matrix(k.clone())?;
             builder.push(&terms.nodes, id, Some(*frame));
+        }
+        if let Some((h, frame)) = &terms.anchored {
+            builder.push_anchored(&terms.nodes, h.clone(), *frame)?;
         }
         let id = builder.add_rest_matrix(&terms.unit_penalty * penalty)?;
         builder.push(&terms.nodes, id, None);

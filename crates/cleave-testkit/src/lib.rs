@@ -91,6 +91,20 @@ fn rotations_at(d: &dyn Discretization, x: &[Real]) -> Vec<Matrix3<Real>> {
     r
 }
 
+/// Rotations extracted to convergence: warm-started rounds until no frame moves by more than
+/// 1e-14 (large bends take more than one round from the identity).
+fn converged_rotations(d: &dyn Discretization, x: &[Real], start: Vec<Matrix3<Real>>) -> Vec<Matrix3<Real>> {
+    let mut r = start;
+    for _ in 0..50 {
+        let before = r.clone();
+        d.write_rotations(x, &mut r);
+        if r.iter().zip(&before).all(|(a, b)| (a - b).amax() < 1e-14) {
+            break;
+        }
+    }
+    r
+}
+
 fn force(d: &dyn Discretization, r: &[Matrix3<Real>], x: &[Real]) -> Vec<Real> {
     let mut f = vec![0.0; x.len()];
     d.add_internal_force(r, x, &mut f);
@@ -196,6 +210,127 @@ pub fn rigid_motion_is_force_free(d: &dyn Discretization) -> Check {
     Check { name: "rigid motion -> zero force", error: norm(&rigid) / norm(&reference), tolerance: 1e-9 }
 }
 
+/// Density of the body, from the gravity load against the plain load of the same constant field
+/// (both through the trait, so it works for nodal and non-nodal bases alike).
+fn density(d: &dyn Discretization) -> Real {
+    let n = d.rest_dofs().len();
+    let mut unit_z = vec![0.0; n];
+    d.add_translation(&Vector3::z(), &mut unit_z);
+    let (mut weight, mut volume) = (vec![0.0; n], vec![0.0; n]);
+    d.add_gravity_load(&Vector3::z(), &mut weight);
+    d.add_load(&|_| Vector3::z(), &mut volume);
+    dot(&weight, &unit_z) / dot(&volume, &unit_z)
+}
+
+/// A bent state: the body bent about an axis through its centroid by an angle that grows along
+/// its longest extent (about 1.2 rad end to end), twisted, then rotated as a whole. Its DOFs are
+/// the mass-weighted projection `x_k = ρ ∫ bend(X) N_k / m_k` (exact L2 projection for an
+/// orthonormal consistent basis, a smoothed interpolation for lumped nodal ones), so neighbouring
+/// frames get visibly different rotations on every backend.
+pub fn bent_state(d: &dyn Discretization) -> Vec<Real> {
+    let mut lo = Vector3::repeat(Real::MAX);
+    let mut hi = Vector3::repeat(Real::MIN);
+    let (mut centroid, mut volume) = (Vector3::zeros(), 0.0);
+    let zero = vec![0.0; d.rest_dofs().len()];
+    d.visit_field(&zero, 2, &mut |s| {
+        lo = lo.inf(&s.position.coords);
+        hi = hi.sup(&s.position.coords);
+        centroid += s.weight * s.position.coords;
+        volume += s.weight;
+    });
+    let centroid = centroid / volume;
+    let extent = hi - lo;
+    let axis = extent.imax();
+    let (across, other) = ((axis + 2) % 3, (axis + 1) % 3);
+    let curvature = 1.2 / extent[axis];
+    let whole = Rotation3::from_euler_angles(0.4, -0.3, 0.9);
+    let bend = move |p: &Point3<Real>| -> Vector3<Real> {
+        let s = p.coords - centroid;
+        let bent = Rotation3::from_axis_angle(&Vector3::ith_axis(across), curvature * s[axis]);
+        let twist = Rotation3::from_axis_angle(&Vector3::ith_axis(axis), 0.3 * s[axis] / extent[axis]);
+        let stretch = 1.0 + 0.05 * s[other] / extent[other].max(Real::MIN_POSITIVE);
+        centroid + whole * (bent * (twist * s * stretch))
+    };
+    let mut projected = vec![0.0; d.rest_dofs().len()];
+    d.add_load(&bend, &mut projected);
+    let rho = density(d);
+    for (x, m) in projected.iter_mut().zip(d.mass().diagonal()) {
+        *x *= rho / m;
+    }
+    projected
+}
+
+/// The largest angle [rad] between the rotation of frame 0 and any other frame.
+fn rotation_spread(rotations: &[Matrix3<Real>]) -> Real {
+    let first = rotations.first().copied().unwrap_or_else(Matrix3::identity);
+    rotations
+        .iter()
+        .map(|r| {
+            let relative = first.transpose() * r;
+            ((relative.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos()
+        })
+        .fold(0.0, Real::max)
+}
+
+fn relative_difference(a: &[Real], b: &[Real]) -> Real {
+    let diff: Vec<Real> = a.iter().zip(b).map(|(a, b)| a - b).collect();
+    norm(&diff) / norm(a).max(Real::MIN_POSITIVE)
+}
+
+/// Translation invariance: `moved` is the same discretization built with every rest position
+/// (and any anchored boundary region) translated. At the bent state of `origin` translated the
+/// same way, the internal force, the stiffness action and the elastic energy must be those of
+/// `origin` (1e-10 relative). The bent state must give frames whose rotations differ by more
+/// than 0.2 rad, or the check fails: a uniform rotation would hide the lever arm of a
+/// translation.
+pub fn translation_invariance(origin: &dyn Discretization, moved: &dyn Discretization) -> Check {
+    let name = "translated problem -> same force, action, energy";
+    let x0 = bent_state(origin);
+    let x1: Vec<Real> = x0.iter().zip(moved.rest_dofs()).zip(origin.rest_dofs()).map(|((x, b), a)| x + b - a).collect();
+    let identity = vec![Matrix3::identity(); origin.num_frames()];
+    let (r0, r1) = (converged_rotations(origin, &x0, identity.clone()), converged_rotations(moved, &x1, identity));
+    if rotation_spread(&r0) < 0.2 || x0.len() != moved.rest_dofs().len() {
+        return Check { name, error: Real::INFINITY, tolerance: 1e-10 };
+    }
+    let force_error = relative_difference(&force(origin, &r0, &x0), &force(moved, &r1, &x1));
+    let dir = Lcg::new(8).vector(x0.len());
+    let (mut k0, mut k1) = (vec![0.0; x0.len()], vec![0.0; x0.len()]);
+    origin.add_stiffness_action(&r0, &dir, 1.0, &mut k0);
+    moved.add_stiffness_action(&r1, &dir, 1.0, &mut k1);
+    let action_error = relative_difference(&k0, &k1);
+    let (e0, e1) = (origin.elastic_energy(&r0, &x0), moved.elastic_energy(&r1, &x1));
+    let energy_error = (e0 - e1).abs() / e0.abs().max(Real::MIN_POSITIVE);
+    Check { name, error: force_error.max(action_error).max(energy_error), tolerance: 1e-10 }
+}
+
+/// Rotation covariance of a free body: rotating a bent state rigidly by `Q` rotates every
+/// frame's rotation and every nodal force by `Q` and leaves the energy unchanged.
+pub fn rotation_covariance(d: &dyn Discretization) -> Check {
+    let name = "rotated bent state -> rotated force";
+    let x = bent_state(d);
+    let r = converged_rotations(d, &x, vec![Matrix3::identity(); d.num_frames()]);
+    if rotation_spread(&r) < 0.2 {
+        return Check { name, error: Real::INFINITY, tolerance: 1e-10 };
+    }
+    let q = Rotation3::from_euler_angles(-1.1, 0.6, 2.3).into_inner();
+    let rotate = |v: &[Real]| -> Vec<Real> {
+        v.chunks_exact(3)
+            .flat_map(|p| {
+                let y = q * Vector3::new(p[0], p[1], p[2]);
+                [y.x, y.y, y.z]
+            })
+            .collect()
+    };
+    let xq = rotate(&x);
+    // Warm start at Q R, as a simulation rotating slowly into this state would have.
+    let rq = converged_rotations(d, &xq, r.iter().map(|r| q * r).collect());
+    let frame_error = r.iter().zip(&rq).map(|(r, rq)| (q * r - rq).norm()).fold(0.0, Real::max);
+    let force_error = relative_difference(&rotate(&force(d, &r, &x)), &force(d, &rq, &xq));
+    let (e, eq) = (d.elastic_energy(&r, &x), d.elastic_energy(&rq, &xq));
+    let energy_error = (e - eq).abs() / e.abs().max(Real::MIN_POSITIVE);
+    Check { name, error: frame_error.max(force_error).max(energy_error), tolerance: 1e-10 }
+}
+
 /// Embedded points reproduce an affine field `x = A X + b` exactly.
 pub fn embedding_reproduces_linear_fields(d: &dyn Discretization) -> Check {
     let mut rng = Lcg::new(6);
@@ -267,6 +402,7 @@ pub fn conformance_suite(d: &dyn Discretization) -> Vec<Check> {
         stiffness_is_symmetric(d),
         matrix_free_equals_assembled(d),
         rigid_motion_is_force_free(d),
+        rotation_covariance(d),
         embedding_reproduces_linear_fields(d),
     ]
 }

@@ -42,3 +42,17 @@ fn patch_test_reproduces_affine_fields_on_a_box_with_interior_nodes() {
     assert!(boundary.len() < mesh.num_nodes(), "the patch must have interior nodes");
     assert_all_pass(&[patch_test(&mesh, &boundary)]);
 }
+
+#[test]
+fn translating_the_whole_problem_changes_no_force_action_or_energy() {
+    // The same cubes built 1000 m away, at a bent state whose cube rotations differ by more than
+    // 0.2 rad: a force that depended on where the origin is would differ by the lever arm.
+    let material = Material::new(3e5, 0.35, 1100.0).unwrap();
+    let cells = irregular_mesh().cells().to_vec();
+    let shift = cleave_core::Vector3::new(600.0, -480.0, 640.0);
+    let origin = Point3::new(0.3, -1.0, 2.0);
+    let near = VoxelMesh::new(material, origin, 0.2, &cells).unwrap();
+    let far = VoxelMesh::new(material, origin + shift, 0.2, &cells).unwrap();
+    assert!((shift.norm() - 1e3).abs() < 1e-9);
+    assert_all_pass(&[cleave_testkit::translation_invariance(&near, &far)]);
+}
