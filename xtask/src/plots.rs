@@ -2,9 +2,9 @@
 //! DOFs, and per-phase time bars, each written as SVG and PNG. Text is rendered with the bundled
 //! DejaVu Sans (`xtask/assets`, licence beside it) through ab_glyph, so no system fonts are read.
 
-use crate::compare::tip_error;
+use crate::compare::{reference_of, tip_error};
 use anyhow::{Context, Result, anyhow};
-use cleave_testkit::compare::{Problem, Row, cantilever_reference};
+use cleave_testkit::compare::{Problem, Row};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -33,7 +33,7 @@ struct ErrorPanel {
 }
 
 fn error_panels(rows: &[Row]) -> Vec<ErrorPanel> {
-    let reference = cantilever_reference(rows);
+    let reference = reference_of(rows);
     let mut panels = Vec::new();
     let specs: [(Problem, &str, &str); 3] = [
         (Problem::MmsSin111, "MMS sin111: L2 error", "relative L2 error [-]"),

@@ -33,6 +33,11 @@ impl CompareBackend for DgBackend {
         ["bz-1", "ip-1", "bz-2", "ip-2"].map(String::from).to_vec()
     }
 
+    fn is_consistent(&self, variant: &str) -> bool {
+        // Babuška–Zlámal drops the consistency terms (kaufmann2008 §4, docs/math/dg.md §4).
+        !variant.starts_with("bz")
+    }
+
     fn build_box(
         &self,
         variant: &str,

@@ -137,6 +137,13 @@ pub trait CompareBackend: Send + Sync {
         dirichlet: &DirichletSpec,
     ) -> Result<BuiltProblem, BuildError>;
 
+    /// Whether `variant` is consistent: an exact solution satisfies its discrete equations, so
+    /// it converges to the exact answer and may serve as a reference (DG's Babuška–Zlámal flux
+    /// is not).
+    fn is_consistent(&self, _variant: &str) -> bool {
+        true
+    }
+
     /// The linear solver of time-stepping runs (dynamic beam, stability grid).
     fn dynamic_solver(&self, _variant: &str) -> Solver {
         Solver::Cholesky
@@ -208,6 +215,21 @@ impl Problem {
         };
         BoxGrid { origin: Point3::origin(), h: 1.0 / n as Real, dims }
     }
+}
+
+/// Young's modulus of the dynamic beam [Pa] (benchmarks.md §3); the static cantilever has 1e6.
+pub const DYNAMIC_YOUNGS_MODULUS: Real = 1e8;
+
+/// The dynamic beam's final tip against the same method's static deflection on the same mesh,
+/// scaled by the ratio of Young's moduli (the static problem is linear): `(dyn − s·stat) / (s·stat)`
+/// with `s = E_static / E_dynamic`. A run that has settled lands on its own static answer; a
+/// defect in the corotated forces (a lever arm to the origin, a ghost force) shows here.
+pub fn self_consistency(dynamic: &Row, rows: &[Row]) -> Option<Real> {
+    let statics = rows
+        .iter()
+        .find(|r| r.problem == Problem::Cantilever.key() && r.method() == dynamic.method() && r.n == dynamic.n)?;
+    let scaled = statics.tip_uz_avg? * crate::problems::cantilever::YOUNGS_MODULUS / DYNAMIC_YOUNGS_MODULUS;
+    Some((dynamic.tip_uz_avg? - scaled) / scaled)
 }
 
 /// Steps and step size of the dynamic beam (benchmarks.md §3).
@@ -457,7 +479,7 @@ pub fn run_problem(backend: &dyn CompareBackend, variant: &str, problem: Problem
             row.tip_uz_point = Some(point);
         }
         Problem::Dynamic => {
-            let material = Material::new(1e8, 0.3, 1000.0)
+            let material = Material::new(DYNAMIC_YOUNGS_MODULUS, 0.3, 1000.0)
                 .and_then(|m| m.with_damping(0.0, 0.01))
                 .expect("benchmark material is valid");
             let dirichlet = DirichletSpec { region: &clamped_face, value: &|_| Vector3::zeros() };
@@ -683,24 +705,50 @@ pub fn richardson(coarse: Real, fine: Real, ratio: Real, rate: Real) -> Real {
     fine + (fine - coarse) / (ratio.powf(rate) - 1.0)
 }
 
-/// The extrapolated cantilever tip deflection and where it came from.
+/// One method's extrapolated cantilever limit.
 #[derive(Clone, Debug, PartialEq)]
-pub struct TipReference {
-    /// Extrapolated mean u_z over the tip face [m].
-    pub value: Real,
-    /// `backend/variant` it was extrapolated from.
+pub struct MethodLimit {
+    /// `backend/variant`.
     pub method: String,
-    /// The two levels used.
+    /// Whether the method is consistent (an exact solution satisfies its discrete equations), so
+    /// that its limit can be a reference at all.
+    pub consistent: bool,
+    /// The two finest levels used.
     pub levels: (usize, usize),
-    /// Their values.
+    /// Their tip values [m].
     pub values: (Real, Real),
-    /// Estimated relative error of the finest run of that method, |fine − value| / |value|.
-    pub finest_error: Real,
+    /// Richardson extrapolation with rate 2λ [m].
+    pub limit: Real,
+    /// Its estimated error: the size of the Richardson correction, |limit − finest| [m].
+    pub estimated_error: Real,
 }
 
-/// Richardson with rate 2λ from the two finest cantilever runs of each method; the reference is
-/// the extrapolation of the method whose finest run has the smallest estimated error.
-pub fn cantilever_reference(rows: &[Row]) -> Option<TipReference> {
+/// The cantilever reference: the limit that independent consistent methods agree on.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TipReference {
+    /// Mean of the agreeing methods' limits [m].
+    pub value: Real,
+    /// Its uncertainty [m]: half the spread of the agreeing limits, or the estimated error of
+    /// the one method that makes it when it stands alone.
+    pub uncertainty: Real,
+    /// Methods whose limits make the reference.
+    pub agreeing: Vec<String>,
+    /// Every method with two levels, in input order.
+    pub limits: Vec<MethodLimit>,
+}
+
+impl TipReference {
+    /// How far `limit` lies outside the reference's uncertainty, relative to the reference:
+    /// `None` when it is within `uncertainty + own estimated error` (it converges to the same
+    /// limit as far as the data can tell).
+    pub fn different_limit(&self, limit: &MethodLimit) -> Option<Real> {
+        let distance = (limit.limit - self.value).abs();
+        (distance > self.uncertainty + limit.estimated_error).then(|| distance / self.value.abs())
+    }
+}
+
+/// Each method's limit by Richardson with rate 2λ from its two finest cantilever runs.
+pub fn cantilever_limits(rows: &[Row], is_consistent: &dyn Fn(&str) -> bool) -> Vec<MethodLimit> {
     let mut methods: Vec<String> =
         rows.iter().filter(|r| r.problem == Problem::Cantilever.key()).map(Row::method).collect();
     methods.dedup();
@@ -712,16 +760,42 @@ pub fn cantilever_reference(rows: &[Row]) -> Option<TipReference> {
             own.sort_by_key(|r| r.n);
             let [.., coarse, fine] = own.as_slice() else { return None };
             let (a, b) = (coarse.tip_uz_avg?, fine.tip_uz_avg?);
-            let value = richardson(a, b, fine.n as Real / coarse.n as Real, 2.0 * CANTILEVER_LAMBDA);
-            Some(TipReference {
-                value,
+            let limit = richardson(a, b, fine.n as Real / coarse.n as Real, 2.0 * CANTILEVER_LAMBDA);
+            Some(MethodLimit {
+                consistent: is_consistent(&method),
                 method,
                 levels: (coarse.n, fine.n),
                 values: (a, b),
-                finest_error: ((b - value) / value).abs(),
+                limit,
+                estimated_error: (b - limit).abs(),
             })
         })
-        .min_by(|a, b| a.finest_error.total_cmp(&b.finest_error))
+        .collect()
+}
+
+/// The reference of the cantilever study (issue 9's rule): only consistent methods are
+/// candidates; starting from the one with the smallest estimated error, a candidate joins when
+/// its limit agrees with every member's within the sum of their estimated errors. The reference
+/// is the mean of the members' limits, its uncertainty half their spread (or the lone member's
+/// estimated error). A method's own most-converged limit is never a reference by itself when
+/// another consistent method disagrees with it: with two disagreeing candidates the reference is
+/// the better estimated one and the other is flagged, which the report shows.
+pub fn cantilever_reference(rows: &[Row], is_consistent: &dyn Fn(&str) -> bool) -> Option<TipReference> {
+    let limits = cantilever_limits(rows, is_consistent);
+    let mut candidates: Vec<&MethodLimit> = limits.iter().filter(|l| l.consistent).collect();
+    candidates.sort_by(|a, b| a.estimated_error.total_cmp(&b.estimated_error));
+    let mut members: Vec<&MethodLimit> = Vec::new();
+    for c in candidates {
+        if members.iter().all(|m| (m.limit - c.limit).abs() <= m.estimated_error + c.estimated_error) {
+            members.push(c);
+        }
+    }
+    let first = members.first()?;
+    let value = members.iter().map(|m| m.limit).sum::<Real>() / members.len() as Real;
+    let (lo, hi) = members.iter().fold((Real::MAX, Real::MIN), |(lo, hi), m| (lo.min(m.limit), hi.max(m.limit)));
+    let uncertainty = if members.len() > 1 { 0.5 * (hi - lo) } else { first.estimated_error };
+    let agreeing = members.iter().map(|m| m.method.clone()).collect();
+    Some(TipReference { value, uncertainty, agreeing, limits })
 }
 
 /// kaufmann2008 Table 1 (ms on a Core2 Duo 2.4 GHz, 10×10×10 grid): label, the (backend,

@@ -144,9 +144,12 @@ pub mod cantilever {
     /// Gravity.
     pub const GRAVITY: Real = 9.81;
 
+    /// Young's modulus of the static cantilever [Pa].
+    pub const YOUNGS_MODULUS: Real = 1e6;
+
     /// E = 1e6, the given ν, ρ = 1000.
     pub fn material(poisson_ratio: Real) -> Material {
-        Material::new(1e6, poisson_ratio, 1000.0).expect("benchmark material is valid")
+        Material::new(YOUNGS_MODULUS, poisson_ratio, 1000.0).expect("benchmark material is valid")
     }
 
     /// Body force density `(0, 0, −ρg)`.
