@@ -203,7 +203,10 @@ impl Integrator {
     /// Rebuilds everything that depends on the topology: loads, pins, pattern, factorization.
     fn rebuild(&mut self, discretization: &dyn Discretization) -> Result<(), StepErrorKind> {
         let n = self.x.len();
-        self.rotations = vec![Matrix3::identity(); discretization.num_frames()];
+        // Warm starts survive a topology change when the caller remapped them frame by frame.
+        if self.rotations.len() != discretization.num_frames() {
+            self.rotations = vec![Matrix3::identity(); discretization.num_frames()];
+        }
         self.last_inverted = discretization.write_rotations(&self.x, &mut self.rotations).inverted;
         self.external_force = vec![0.0; n];
         let g = self.settings.gravity;
@@ -270,18 +273,38 @@ impl Integrator {
         Ok(())
     }
 
-    /// Carries the state across a topology change and rebuilds the per-epoch structures. The
-    /// caller passes constraints re-embedded on the new topology.
+    /// Carries the state across a topology change and rebuilds the per-epoch structures, between
+    /// steps (never inside one). `discretization` is already in its new epoch; `change` is what
+    /// its cut, fracture or refinement returned. `x` and `v` are remapped by `change.remap`
+    /// (exactly: a `Gather` copies, a `Linear` interpolates, so every material point keeps its
+    /// position and velocity), the rotations by `change.frames` (warm starts, not identities).
+    /// Then loads, pins, pattern, symbolic factorization and coarse space are rebuilt for the
+    /// new topology; the caller passes constraints resolved again on it (pins from their
+    /// rest-space regions, contact rows from the new surface, weak boundary loads).
     pub fn apply_topology_change(
         &mut self,
         discretization: &dyn Discretization,
         change: &TopologyChange,
         constraints: Constraints,
     ) -> Result<(), StepError> {
-        if change.remap != DofRemap::Identity {
-            self.x = change.remap.apply(&self.x);
-            self.v = change.remap.apply(&self.v);
+        let fail = |kind| StepError { step: self.step, kind };
+        let old_nodes = self.x.len() / 3;
+        let new_nodes = change.remap.new_num_nodes(old_nodes);
+        if new_nodes != discretization.num_nodes() || change.epoch != discretization.epoch() {
+            return Err(fail(StepErrorKind::Solver(format!(
+                "topology change to epoch {} with {new_nodes} nodes does not match the discretization \
+                 (epoch {}, {} nodes)",
+                change.epoch,
+                discretization.epoch(),
+                discretization.num_nodes()
+            ))));
         }
+        let mut remapped = Vec::with_capacity(3 * new_nodes);
+        change.remap.apply_into(&self.x, &mut remapped);
+        std::mem::swap(&mut self.x, &mut remapped);
+        change.remap.apply_into(&self.v, &mut remapped);
+        std::mem::swap(&mut self.v, &mut remapped);
+        self.rotations = change.frames.apply(&self.rotations);
         self.constraints = constraints;
         self.rebuild(discretization).map_err(|kind| StepError { step: self.step, kind })
     }
