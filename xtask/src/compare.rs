@@ -341,7 +341,10 @@ fn report(
                      the size of that correction as its estimated error. Only consistent methods may make the \
                      reference, and only those whose limits agree with each other within the sum of their \
                      estimated errors (a method's own limit is not a reference for itself): **{}** agree on \
-                     **tip_uz_avg = {:.5} m ± {:.5} m** ({:.3}%, half their spread). Every other method is \
+                     **tip_uz_avg = {:.5} m ± {:.5} m** ({:.3}%): their limits averaged with weights \
+                     1/error², and as uncertainty the larger of that mean's own error and the largest \
+                     distance from it of the members that pin it down (weight at least a tenth of the \
+                     largest). Every other method is \
                      flagged below when its limit lies outside that band by more than its own estimated \
                      error. Tip errors are |u − u_ref| / |u_ref|; their rates should approach 2λ = 1.42 for the \
                      methods that converge to the reference.\n",

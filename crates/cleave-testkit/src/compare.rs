@@ -726,10 +726,9 @@ pub struct MethodLimit {
 /// The cantilever reference: the limit that independent consistent methods agree on.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TipReference {
-    /// Mean of the agreeing methods' limits [m].
+    /// The agreeing methods' limits averaged with weights 1/error² [m].
     pub value: Real,
-    /// Its uncertainty [m]: half the spread of the agreeing limits, or the estimated error of
-    /// the one method that makes it when it stands alone.
+    /// Its uncertainty [m] ([`cantilever_reference`]).
     pub uncertainty: Real,
     /// Methods whose limits make the reference.
     pub agreeing: Vec<String>,
@@ -776,10 +775,10 @@ pub fn cantilever_limits(rows: &[Row], is_consistent: &dyn Fn(&str) -> bool) -> 
 /// The reference of the cantilever study (issue 9's rule): only consistent methods are
 /// candidates; starting from the one with the smallest estimated error, a candidate joins when
 /// its limit agrees with every member's within the sum of their estimated errors. The reference
-/// is the mean of the members' limits, its uncertainty half their spread (or the lone member's
-/// estimated error). A method's own most-converged limit is never a reference by itself when
-/// another consistent method disagrees with it: with two disagreeing candidates the reference is
-/// the better estimated one and the other is flagged, which the report shows.
+/// is the members' mean weighted by 1/error² (a poorly converged member that merely agrees does
+/// not pull it); its uncertainty is the larger of the weighted mean's own error
+/// `(Σ 1/e²)^(−1/2)` and the largest distance from it of the well-converged members (weight at
+/// least a tenth of the largest): the spread of the methods that actually pin it down.
 pub fn cantilever_reference(rows: &[Row], is_consistent: &dyn Fn(&str) -> bool) -> Option<TipReference> {
     let limits = cantilever_limits(rows, is_consistent);
     let mut candidates: Vec<&MethodLimit> = limits.iter().filter(|l| l.consistent).collect();
@@ -790,10 +789,17 @@ pub fn cantilever_reference(rows: &[Row], is_consistent: &dyn Fn(&str) -> bool) 
             members.push(c);
         }
     }
-    let first = members.first()?;
-    let value = members.iter().map(|m| m.limit).sum::<Real>() / members.len() as Real;
-    let (lo, hi) = members.iter().fold((Real::MAX, Real::MIN), |(lo, hi), m| (lo.min(m.limit), hi.max(m.limit)));
-    let uncertainty = if members.len() > 1 { 0.5 * (hi - lo) } else { first.estimated_error };
+    if members.is_empty() {
+        return None;
+    }
+    let floor = members.iter().map(|m| m.limit.abs()).fold(0.0, Real::max) * 1e-12;
+    let weight = |m: &MethodLimit| 1.0 / m.estimated_error.max(floor).powi(2);
+    let total: Real = members.iter().map(|m| weight(m)).sum();
+    let value = members.iter().map(|m| weight(m) * m.limit).sum::<Real>() / total;
+    let heaviest = members.iter().map(|m| weight(m)).fold(0.0, Real::max);
+    let spread =
+        members.iter().filter(|m| weight(m) >= 0.1 * heaviest).map(|m| (m.limit - value).abs()).fold(0.0, Real::max);
+    let uncertainty = spread.max(total.sqrt().recip());
     let agreeing = members.iter().map(|m| m.method.clone()).collect();
     Some(TipReference { value, uncertainty, agreeing, limits })
 }
@@ -904,5 +910,58 @@ mod tests {
         let text = format!("{CSV_HEADER}\n{}\n", row.to_csv());
         assert_eq!(parse_csv(&text).unwrap(), vec![row]);
         assert!(parse_csv("a,b\n").is_err());
+    }
+}
+
+#[cfg(test)]
+mod reference_tests {
+    use super::*;
+
+    fn cantilever_row(backend: &str, variant: &str, n: usize, tip: Real) -> Row {
+        Row {
+            problem: Problem::Cantilever.key().into(),
+            backend: backend.into(),
+            variant: variant.into(),
+            n,
+            tip_uz_avg: Some(tip),
+            ..Default::default()
+        }
+    }
+
+    /// Two levels converging exactly like `limit + c h^(2λ)` with h = 1/n.
+    fn converging(backend: &str, variant: &str, limit: Real, c: Real) -> [Row; 2] {
+        let tip = |n: usize| limit + c * (1.0 / n as Real).powf(2.0 * CANTILEVER_LAMBDA);
+        [cantilever_row(backend, variant, 8, tip(8)), cantilever_row(backend, variant, 16, tip(16))]
+    }
+
+    #[test]
+    fn richardson_recovers_the_limit_of_an_exact_power_law() {
+        // u(h) = L + c h^p: two levels give L back exactly (an independent closed form).
+        let (l, c, p) = (-3.9, 0.7, 1.422);
+        let value = richardson(l + c * 0.25f64.powf(p), l + c * 0.125f64.powf(p), 2.0, p);
+        assert!((value - l).abs() < 1e-13, "{value}");
+    }
+
+    #[test]
+    fn an_inconsistent_method_is_flagged_and_never_the_reference() {
+        // Two consistent methods converging to −3.93 and one inconsistent one converging faster
+        // to −4.13 (the situation of issue 9): the reference is −3.93, the other is flagged.
+        let mut rows = Vec::new();
+        rows.extend(converging("voxel", "trilinear", -3.93, 0.3));
+        rows.extend(converging("dg", "ip-2", -3.9305, -0.2));
+        rows.extend(converging("dg", "bz-2", -4.13, 0.01));
+        let consistent = |m: &str| !m.ends_with("bz-2");
+        let reference = cantilever_reference(&rows, &consistent).unwrap();
+        assert_eq!(reference.agreeing, vec!["dg/ip-2".to_string(), "voxel/trilinear".to_string()]);
+        assert!((reference.value + 3.93).abs() < 1e-3, "{reference:?}");
+        let bz = reference.limits.iter().find(|l| l.method == "dg/bz-2").unwrap();
+        let away = reference.different_limit(bz).expect("BZ must be flagged");
+        assert!((away - 0.2 / 3.93).abs() < 2e-3, "{away}");
+        // The consistency flag is what protects the reference: declared consistent, BZ's
+        // smaller estimated error would make it the first member, and the right methods,
+        // which disagree with it, would be left out. Registrations must declare it
+        // (`CompareBackend::is_consistent`).
+        let all = cantilever_reference(&rows, &|_| true).unwrap();
+        assert_eq!(all.agreeing, vec!["dg/bz-2".to_string()], "{all:?}");
     }
 }
