@@ -1,0 +1,27 @@
+//! cleave-virtualnode: the generalized virtual node algorithm of Sifakis, Der and Fedkiw,
+//! "Arbitrary cutting of deformable tetrahedralized objects" (SCA 2007), on a BCC lattice.
+//!
+//! - [`lattice`]: the body-centred cubic tetrahedral lattice.
+//! - [`arrangement`]: the convex cells of one tetrahedron's material, split by cut triangles
+//!   with exact side decisions, and its material regions.
+//! - [`mesh`]: [`VirtualNodeMesh`], carving a closed surface out of the lattice, one duplicate
+//!   per region, node copies identified across contiguous faces, the `Discretization` and
+//!   `Cuttable` implementations.
+//! - [`tet`]: linear tetrahedron shape functions, stiffness and quadrature.
+//!
+//! ```no_run
+//! # use cleave_core::{Material, Point3, CutSurface, Cuttable, Vector3};
+//! # use cleave_virtualnode::VirtualNodeMesh;
+//! let material = Material::new(1e6, 0.3, 1000.0).unwrap();
+//! let mut block = VirtualNodeMesh::from_box(Point3::origin(), Point3::new(1.0, 0.5, 0.5), 0.1, material).unwrap();
+//! let change = block.cut(&CutSurface::Plane { point: Point3::new(0.53, 0.0, 0.0), normal: Vector3::x() }).unwrap();
+//! assert_eq!(block.pieces().len(), 2);
+//! ```
+
+pub mod arrangement;
+pub mod lattice;
+pub mod mesh;
+pub mod predicates;
+pub mod tet;
+
+pub use mesh::{CutStats, Piece, VirtualNodeError, VirtualNodeMesh, box_surface};

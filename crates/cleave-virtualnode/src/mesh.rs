@@ -1,0 +1,922 @@
+//! The virtual node mesh (sifakis2007 §3–4): a BCC lattice carved by the object's surface,
+//! one duplicate of a lattice tetrahedron per material region, node copies identified across
+//! materially contiguous faces; corotated linear tetrahedra scaled by region volume; cutting by
+//! triangle soups.
+
+use crate::arrangement::{Arrangement, Cover, OVERLAP_TOLERANCE, TET_FACES};
+use crate::lattice::{BccLattice, LatticeTetCorners, number_nodes};
+use crate::predicates::{convex_overlap_area, largest_component, project};
+use crate::tet::{TetRule, TetShape};
+use cleave_core::rotation::extract_rotation;
+use cleave_core::{
+    BlockSet, BlockSetBuilder, CutSurface, Cuttable, Discretization, DofRemap, EmbedError, Embedding, FieldSample,
+    FrameRemap, Mass, Material, Matrix3, Point3, Real, RotationStats, TopologyChange, TopologyError, Vector3,
+};
+use cleave_geometry::{InsideTester, TriangleMesh};
+use nalgebra::{DMatrix, Point2};
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// Why a virtual node mesh could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum VirtualNodeError {
+    /// Lattice spacing not finite and positive.
+    #[error("lattice spacing must be finite and > 0, got {0}")]
+    Spacing(Real),
+    /// The surface is unusable for carving.
+    #[error("surface: {0}")]
+    Surface(#[from] cleave_geometry::GeometryError),
+    /// The lattice over the surface's bounding box would be too large.
+    #[error("a lattice of spacing {h} over the surface needs {cubes} cubes (limit {limit})")]
+    TooLarge {
+        /// the spacing asked for
+        h: Real,
+        /// cubes needed
+        cubes: u64,
+        /// the limit
+        limit: u64,
+    },
+    /// Carving left no material.
+    #[error("carving left no material (is the surface inside out or smaller than the lattice?)")]
+    Empty,
+    /// Internal block bookkeeping failed (a bug).
+    #[error(transparent)]
+    Blocks(#[from] cleave_core::BlockSetError),
+}
+
+/// Largest number of lattice cubes a mesh may have.
+pub const MAX_LATTICE_CUBES: u64 = 20_000_000;
+
+/// Iterations of the warm-started rotation extraction.
+const ROTATION_ITERATIONS: usize = 8;
+
+/// One lattice tetrahedron that holds material.
+#[derive(Clone, Debug)]
+struct LatticeTet {
+    /// Lattice node index of each corner.
+    nodes: [u32; 4],
+    /// Rest shape.
+    shape: TetShape,
+    /// Id of its full rest stiffness in the library.
+    rest_class: u32,
+    /// Neighbour across face `i` (opposite corner `i`): tet and its face index.
+    neighbors: [Option<(u32, u8)>; 4],
+}
+
+/// One duplicate of a lattice tetrahedron: a material region and its node copies.
+#[derive(Clone, Debug)]
+struct Duplicate {
+    tet: u32,
+    cells: Arrangement,
+    volume: Real,
+    nodes: [u32; 4],
+}
+
+/// A connected piece of material (a component of the duplicates linked by shared nodes).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Piece {
+    /// Its duplicates (element / frame indices).
+    pub duplicates: Vec<u32>,
+    /// Its nodes.
+    pub nodes: Vec<u32>,
+    /// Material volume.
+    pub volume: Real,
+    /// Mass (density × volume).
+    pub mass: Real,
+}
+
+/// Statistics of the last topology change.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CutStats {
+    /// Duplicates whose cells a triangle touched.
+    pub touched: usize,
+    /// Duplicates before and after.
+    pub duplicates: (usize, usize),
+    /// Nodes before and after.
+    pub nodes: (usize, usize),
+}
+
+/// A BCC lattice carved into an object and cut, simulated with corotated linear tetrahedra.
+#[derive(Debug)]
+pub struct VirtualNodeMesh {
+    material: Material,
+    lattice: BccLattice,
+    lattice_nodes: Vec<[i32; 3]>,
+    tets: Vec<LatticeTet>,
+    cube_tets: HashMap<[i32; 3], Vec<u32>>,
+    rest_library: Vec<DMatrix<Real>>,
+    duplicates: Vec<Duplicate>,
+    dups_of_tet: Vec<Vec<u32>>,
+    node_lattice: Vec<u32>,
+    rest: Vec<Real>,
+    mass: Mass,
+    blocks: BlockSet,
+    epoch: u64,
+    last_cut: CutStats,
+}
+
+/// Open pieces of one face of one duplicate, projected for overlap tests.
+enum FacePieces {
+    Whole,
+    Pieces(Vec<Vec<Point2<Real>>>),
+}
+
+impl VirtualNodeMesh {
+    /// Carves `surface` (closed, outward oriented) out of a BCC lattice of cube edge `h`: the
+    /// surface triangles are the first cut, and only regions inside the surface are kept.
+    pub fn carve(surface: &TriangleMesh, h: Real, material: Material) -> Result<Self, VirtualNodeError> {
+        if !(h.is_finite() && h > 0.0) {
+            return Err(VirtualNodeError::Spacing(h));
+        }
+        let tester = InsideTester::new(surface)?;
+        let (lo, hi) = surface.aabb();
+        let lattice = BccLattice::covering(lo, hi, h);
+        let cubes = lattice.dims.iter().map(|&d| d as u64).product::<u64>();
+        if cubes > MAX_LATTICE_CUBES {
+            return Err(VirtualNodeError::TooLarge { h, cubes, limit: MAX_LATTICE_CUBES });
+        }
+        let all = lattice.tetrahedra();
+        let mut cube_tets: HashMap<[i32; 3], Vec<u32>> = HashMap::new();
+        for (t, corners) in all.iter().enumerate() {
+            for cube in BccLattice::cubes_of_tet(corners) {
+                cube_tets.entry(cube).or_default().push(t as u32);
+            }
+        }
+        let triangles: Vec<[Point3<Real>; 3]> =
+            (0..surface.triangles.len()).filter_map(|t| surface.triangle_points(t)).collect();
+        let mut tris_of_tet: Vec<Vec<u32>> = vec![Vec::new(); all.len()];
+        for (i, tri) in triangles.iter().enumerate() {
+            for t in candidate_tets(&lattice, &cube_tets, tri) {
+                let corners = all[t as usize].map(|d| lattice.position(d));
+                if boxes_overlap(bounds(&corners), bounds(tri)) {
+                    tris_of_tet[t as usize].push(i as u32);
+                }
+            }
+        }
+        let carved: Vec<Vec<(Arrangement, Real)>> = all
+            .par_iter()
+            .zip(&tris_of_tet)
+            .map(|(corners, tris)| {
+                let points = corners.map(|d| lattice.position(d));
+                let mut arrangement = Arrangement::tetrahedron(points);
+                if tris.is_empty() {
+                    let centre = Point3::from((0..4).fold(Vector3::zeros(), |s, i| s + points[i].coords) / 4.0);
+                    return if tester.contains(&centre) {
+                        let v = arrangement.volume();
+                        vec![(arrangement, v)]
+                    } else {
+                        Vec::new()
+                    };
+                }
+                for &t in tris {
+                    arrangement.cut(&triangles[t as usize], Cover::Surface);
+                }
+                arrangement
+                    .regions()
+                    .into_iter()
+                    .filter(|(cells, _)| {
+                        let largest = cells
+                            .iter()
+                            .copied()
+                            .max_by(|&a, &b| {
+                                arrangement
+                                    .cell_volume(&arrangement.cells[a])
+                                    .total_cmp(&arrangement.cell_volume(&arrangement.cells[b]))
+                            })
+                            .expect("regions are not empty");
+                        tester.contains(&arrangement.cell_center(&arrangement.cells[largest]))
+                    })
+                    .map(|(cells, volume)| (arrangement.restricted(&cells), volume))
+                    .collect()
+            })
+            .collect();
+        // Keep the tetrahedra with material, in lattice order (z-major by face).
+        let kept: Vec<usize> = (0..all.len()).filter(|&t| !carved[t].is_empty()).collect();
+        if kept.is_empty() {
+            return Err(VirtualNodeError::Empty);
+        }
+        let kept_corners: Vec<LatticeTetCorners> = kept.iter().map(|&t| all[t]).collect();
+        let (lattice_nodes, node_index) = number_nodes(&kept_corners);
+        let mut rest_library = Vec::new();
+        let mut classes: HashMap<[[i32; 3]; 3], u32> = HashMap::new();
+        let mut tets = Vec::with_capacity(kept.len());
+        let mut cube_tets: HashMap<[i32; 3], Vec<u32>> = HashMap::new();
+        for (k, corners) in kept_corners.iter().enumerate() {
+            let points = corners.map(|d| lattice.position(d));
+            let shape = TetShape::new(points).expect("lattice tetrahedra are not degenerate");
+            let key: [[i32; 3]; 3] =
+                std::array::from_fn(|i| std::array::from_fn(|a| corners[i + 1][a] - corners[0][a]));
+            let rest_class = *classes.entry(key).or_insert_with(|| {
+                rest_library.push(shape.stiffness(&material, 1.0));
+                rest_library.len() as u32 - 1
+            });
+            for cube in BccLattice::cubes_of_tet(corners) {
+                cube_tets.entry(cube).or_default().push(k as u32);
+            }
+            tets.push(LatticeTet { nodes: corners.map(|d| node_index[&d]), shape, rest_class, neighbors: [None; 4] });
+        }
+        // Face adjacency through sorted node triples.
+        let mut faces: HashMap<[u32; 3], (u32, u8)> = HashMap::new();
+        for t in 0..tets.len() {
+            for (f, face) in TET_FACES.iter().enumerate() {
+                let mut key = face.map(|c| tets[t].nodes[c]);
+                key.sort_unstable();
+                if let Some((other, of)) = faces.remove(&key) {
+                    tets[t].neighbors[f] = Some((other, of));
+                    tets[other as usize].neighbors[of as usize] = Some((t as u32, f as u8));
+                } else {
+                    faces.insert(key, (t as u32, f as u8));
+                }
+            }
+        }
+        let mut duplicates = Vec::new();
+        for (k, &t) in kept.iter().enumerate() {
+            for (cells, volume) in &carved[t] {
+                duplicates.push(Duplicate { tet: k as u32, cells: cells.clone(), volume: *volume, nodes: [0; 4] });
+            }
+        }
+        let mut mesh = Self {
+            material,
+            lattice,
+            lattice_nodes,
+            tets,
+            cube_tets,
+            rest_library,
+            duplicates,
+            dups_of_tet: Vec::new(),
+            node_lattice: Vec::new(),
+            rest: Vec::new(),
+            mass: Mass::Lumped(Vec::new()),
+            blocks: BlockSetBuilder::new().finish(0)?,
+            epoch: 0,
+            last_cut: CutStats::default(),
+        };
+        mesh.rebuild_topology(None)?;
+        Ok(mesh)
+    }
+
+    /// An axis-aligned box `[lo, hi]` carved out of a lattice of spacing `h`.
+    pub fn from_box(lo: Point3<Real>, hi: Point3<Real>, h: Real, material: Material) -> Result<Self, VirtualNodeError> {
+        Self::carve(&box_surface(lo, hi), h, material)
+    }
+
+    /// The material.
+    pub fn material(&self) -> &Material {
+        &self.material
+    }
+
+    /// The lattice.
+    pub fn lattice(&self) -> &BccLattice {
+        &self.lattice
+    }
+
+    /// Number of duplicates (elements, frames).
+    pub fn num_duplicates(&self) -> usize {
+        self.duplicates.len()
+    }
+
+    /// Number of lattice tetrahedra holding material.
+    pub fn num_lattice_tets(&self) -> usize {
+        self.tets.len()
+    }
+
+    /// Total material volume (sum of region volumes).
+    pub fn volume(&self) -> Real {
+        self.duplicates.iter().map(|d| d.volume).sum()
+    }
+
+    /// Region volume of every duplicate.
+    pub fn duplicate_volumes(&self) -> Vec<Real> {
+        self.duplicates.iter().map(|d| d.volume).collect()
+    }
+
+    /// Node indices of every duplicate (in its lattice tetrahedron's corner order).
+    pub fn duplicate_nodes(&self) -> Vec<[u32; 4]> {
+        self.duplicates.iter().map(|d| d.nodes).collect()
+    }
+
+    /// The convex cells of a duplicate's region.
+    pub fn duplicate_cells(&self, d: usize) -> &Arrangement {
+        &self.duplicates[d].cells
+    }
+
+    /// Rest shape of the lattice tetrahedron of duplicate `d`.
+    pub fn duplicate_shape(&self, d: usize) -> &TetShape {
+        &self.tets[self.duplicates[d].tet as usize].shape
+    }
+
+    /// Whether node copy `corner` of duplicate `d` is real (its region contains that corner).
+    pub fn is_real_copy(&self, d: usize, corner: usize) -> bool {
+        self.duplicates[d].cells.has_corner(corner)
+    }
+
+    /// Statistics of the last cut.
+    pub fn last_cut(&self) -> CutStats {
+        self.last_cut
+    }
+
+    /// Connected pieces: components of duplicates linked by shared nodes.
+    pub fn pieces(&self) -> Vec<Piece> {
+        let n = self.node_lattice.len();
+        let mut uf = UnionFind::new(n);
+        for d in &self.duplicates {
+            for c in 1..4 {
+                uf.union(d.nodes[0] as usize, d.nodes[c] as usize);
+            }
+        }
+        let mut index: HashMap<usize, usize> = HashMap::new();
+        let mut pieces: Vec<Piece> = Vec::new();
+        for (i, d) in self.duplicates.iter().enumerate() {
+            let root = uf.find(d.nodes[0] as usize);
+            let k = *index.entry(root).or_insert_with(|| {
+                pieces.push(Piece { duplicates: Vec::new(), nodes: Vec::new(), volume: 0.0, mass: 0.0 });
+                pieces.len() - 1
+            });
+            pieces[k].duplicates.push(i as u32);
+            pieces[k].volume += d.volume;
+        }
+        for node in 0..n {
+            if let Some(&k) = index.get(&uf.find(node)) {
+                pieces[k].nodes.push(node as u32);
+            }
+        }
+        for p in &mut pieces {
+            p.mass = self.material.density * p.volume;
+        }
+        pieces
+    }
+
+    /// Identifies node copies across materially contiguous faces and rebuilds nodes, mass and
+    /// blocks. With `old = (old nodes per duplicate, parent of each duplicate)`, copies are only
+    /// identified when they came from the same old node, so the result refines the old nodes.
+    fn rebuild_topology(&mut self, old: Option<(&[[u32; 4]], &[u32])>) -> Result<Vec<u32>, VirtualNodeError> {
+        let mut dups_of_tet = vec![Vec::new(); self.tets.len()];
+        for (i, d) in self.duplicates.iter().enumerate() {
+            dups_of_tet[d.tet as usize].push(i as u32);
+        }
+        // Open face pieces of every duplicate, projected along the face normal's largest axis.
+        let face_pieces: Vec<[FacePieces; 4]> = self
+            .duplicates
+            .par_iter()
+            .map(|d| {
+                let tet = &self.tets[d.tet as usize];
+                std::array::from_fn(|f| {
+                    if d.cells.face_is_whole(f) {
+                        return FacePieces::Whole;
+                    }
+                    let axis = face_axis(tet, f);
+                    FacePieces::Pieces(
+                        d.cells
+                            .open_face_pieces(f)
+                            .iter()
+                            .map(|loop_| loop_.iter().map(|p| project(p, axis)).collect())
+                            .collect(),
+                    )
+                })
+            })
+            .collect();
+        // Pairs of duplicates across each lattice face that are materially contiguous.
+        let tets = &self.tets;
+        let lattice_h = self.lattice.h;
+        let links: Vec<(u32, u8, u32, u8)> = (0..tets.len())
+            .into_par_iter()
+            .flat_map_iter(|t| {
+                let mut out = Vec::new();
+                let mut scratch = (Vec::new(), Vec::new());
+                for f in 0..4 {
+                    let Some((other, of)) = tets[t].neighbors[f] else { continue };
+                    if (other as usize) < t {
+                        continue;
+                    }
+                    let threshold = OVERLAP_TOLERANCE * 2.0 * lattice_h * lattice_h;
+                    for &a in &dups_of_tet[t] {
+                        for &b in &dups_of_tet[other as usize] {
+                            let (pa, pb) = (&face_pieces[a as usize][f], &face_pieces[b as usize][of as usize]);
+                            if contiguous(pa, pb, threshold, &mut scratch) {
+                                out.push((a, f as u8, b, of));
+                            }
+                        }
+                    }
+                }
+                out
+            })
+            .collect();
+        let num_copies = 4 * self.duplicates.len();
+        let mut uf = UnionFind::new(num_copies);
+        for &(a, f, b, of) in &links {
+            let (ta, tb) = (
+                &self.tets[self.duplicates[a as usize].tet as usize],
+                &self.tets[self.duplicates[b as usize].tet as usize],
+            );
+            for &ca in &TET_FACES[f as usize] {
+                let node = ta.nodes[ca];
+                let Some(cb) = TET_FACES[of as usize].iter().copied().find(|&c| tb.nodes[c] == node) else { continue };
+                if let Some((old_nodes, parent)) = old {
+                    let (pa, pb) = (parent[a as usize] as usize, parent[b as usize] as usize);
+                    if old_nodes[pa][ca] != old_nodes[pb][cb] {
+                        continue;
+                    }
+                }
+                uf.union(4 * a as usize + ca, 4 * b as usize + cb);
+            }
+        }
+        // Classes → nodes, ordered by lattice node, then by first copy.
+        let mut first: HashMap<usize, (u32, usize)> = HashMap::new();
+        for copy in 0..num_copies {
+            let root = uf.find(copy);
+            let d = &self.duplicates[copy / 4];
+            let lattice_node = self.tets[d.tet as usize].nodes[copy % 4];
+            first.entry(root).or_insert((lattice_node, copy));
+        }
+        let mut classes: Vec<(u32, usize, usize)> = first.into_iter().map(|(root, (n, c))| (n, c, root)).collect();
+        classes.sort_unstable();
+        let node_of_root: HashMap<usize, u32> = classes.iter().enumerate().map(|(i, c)| (c.2, i as u32)).collect();
+        let mut gather = Vec::with_capacity(classes.len());
+        for &(_, copy, _) in &classes {
+            if let Some((old_nodes, parent)) = old {
+                gather.push(old_nodes[parent[copy / 4] as usize][copy % 4]);
+            }
+        }
+        for (i, d) in self.duplicates.iter_mut().enumerate() {
+            for c in 0..4 {
+                d.nodes[c] = node_of_root[&uf.find(4 * i + c)];
+            }
+        }
+        self.node_lattice = classes.iter().map(|c| c.0).collect();
+        self.rest = self
+            .node_lattice
+            .iter()
+            .flat_map(|&n| {
+                let p = self.lattice.position(self.lattice_nodes[n as usize]);
+                [p.x, p.y, p.z]
+            })
+            .collect();
+        // Row sums of the consistent mass: m_k = ρ ∫_region N_k (exact by the centroid rule on
+        // every fan tetrahedron, N being linear). They sum to ρ·volume, put every region's mass
+        // at its own centre of mass, and make `M g` the exact gravity load.
+        let mut lumped = vec![0.0; self.rest.len()];
+        let rho = self.material.density;
+        self.for_each_quadrature_point(1, &mut |d, p, w| {
+            let dup = &self.duplicates[d];
+            let n = self.tets[dup.tet as usize].shape.barycentric(&p);
+            for c in 0..4 {
+                for a in 0..3 {
+                    lumped[3 * dup.nodes[c] as usize + a] += rho * w * n[c];
+                }
+            }
+        });
+        self.mass = Mass::Lumped(lumped);
+        let mut builder = BlockSetBuilder::new();
+        for k in &self.rest_library {
+            builder.add_rest_matrix(k.clone())?;
+        }
+        for (i, d) in self.duplicates.iter().enumerate() {
+            let tet = &self.tets[d.tet as usize];
+            let fraction = d.volume / tet.shape.volume;
+            let id = if fraction == 1.0 {
+                tet.rest_class
+            } else {
+                builder.add_rest_matrix(tet.shape.stiffness(&self.material, fraction))?
+            };
+            builder.push(&d.nodes, id, Some(i as u32));
+        }
+        self.blocks = builder.finish(self.node_lattice.len())?;
+        self.dups_of_tet = dups_of_tet;
+        Ok(gather)
+    }
+
+    /// Duplicates whose region may contain `p` (within `tolerance`), best first, with the
+    /// barycentric weights of their tetrahedron.
+    fn locate(&self, p: &Point3<Real>) -> Option<(usize, [Real; 4])> {
+        let h = self.lattice.h;
+        let tolerance = 1e-6 * h;
+        let lo = self.lattice.cube_of(&(p - Vector3::repeat(tolerance)));
+        let hi = self.lattice.cube_of(&(p + Vector3::repeat(tolerance)));
+        let mut best: Option<(Real, usize, [Real; 4])> = None;
+        for i in lo[0]..=hi[0] {
+            for j in lo[1]..=hi[1] {
+                for k in lo[2]..=hi[2] {
+                    let Some(list) = self.cube_tets.get(&[i, j, k]) else { continue };
+                    for &t in list {
+                        let shape = &self.tets[t as usize].shape;
+                        let w = shape.barycentric(p);
+                        if w.iter().any(|&w| w < -1e-6) {
+                            continue;
+                        }
+                        for &d in &self.dups_of_tet[t as usize] {
+                            let cells = &self.duplicates[d as usize].cells;
+                            let distance = (0..cells.cells.len())
+                                .map(|c| cells.outside_distance(c, p))
+                                .fold(Real::INFINITY, Real::min);
+                            if best.is_none_or(|b| distance < b.0) {
+                                best = Some((distance, d as usize, w));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // Inside a cell up to rounding; points on region boundaries, and the rare point of a
+        // sliver cell whose rounded faces are not convex, take the nearest cell within 1e-6 h.
+        best.filter(|b| b.0 <= 1e-6 * h).map(|b| (b.1, b.2))
+    }
+
+    /// Deformation gradient of duplicate `d` at positions `x`.
+    fn gradient(&self, d: usize, x: &[Real]) -> Matrix3<Real> {
+        let dup = &self.duplicates[d];
+        let shape = &self.tets[dup.tet as usize].shape;
+        let p = |c: usize| {
+            let i = 3 * dup.nodes[c] as usize;
+            Vector3::new(x[i], x[i + 1], x[i + 2])
+        };
+        let x0 = p(0);
+        Matrix3::from_columns(&[p(1) - x0, p(2) - x0, p(3) - x0]) * shape.dm_inv
+    }
+
+    /// Calls `visit(duplicate, point, weight)` for the points of a rule of `degree` on every cell
+    /// (each convex cell fanned into tetrahedra from its vertex average).
+    fn for_each_quadrature_point(&self, degree: usize, visit: &mut dyn FnMut(usize, Point3<Real>, Real)) {
+        let rule = TetRule::of_degree(degree);
+        for (d, dup) in self.duplicates.iter().enumerate() {
+            let cells = &dup.cells;
+            for cell in &cells.cells {
+                let apex = cells.cell_center(cell);
+                for face in &cell.faces {
+                    let p0 = cells.point(face.verts[0]);
+                    for w in face.verts[1..].windows(2) {
+                        let (p1, p2) = (cells.point(w[0]), cells.point(w[1]));
+                        let (e1, e2, e3) = (p0 - apex, p1 - apex, p2 - apex);
+                        let volume = e1.dot(&e2.cross(&e3)) / 6.0;
+                        if volume == 0.0 {
+                            continue;
+                        }
+                        for (q, wq) in rule.points.iter().zip(&rule.weights) {
+                            visit(d, apex + e1 * q[0] + e2 * q[1] + e3 * q[2], wq * volume);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl Discretization for VirtualNodeMesh {
+    fn name(&self) -> &str {
+        "virtualnode"
+    }
+
+    fn num_nodes(&self) -> usize {
+        self.node_lattice.len()
+    }
+
+    fn rest_dofs(&self) -> &[Real] {
+        &self.rest
+    }
+
+    fn epoch(&self) -> u64 {
+        self.epoch
+    }
+
+    fn mass(&self) -> &Mass {
+        &self.mass
+    }
+
+    fn num_frames(&self) -> usize {
+        self.duplicates.len()
+    }
+
+    fn write_rotations(&self, x: &[Real], rotations: &mut [Matrix3<Real>]) -> RotationStats {
+        let inverted = rotations
+            .par_iter_mut()
+            .enumerate()
+            .map(|(d, r)| {
+                let f = self.gradient(d, x);
+                *r = extract_rotation(&f, r, ROTATION_ITERATIONS);
+                usize::from(f.determinant() <= 0.0)
+            })
+            .sum();
+        RotationStats { inverted }
+    }
+
+    fn blocks(&self) -> &BlockSet {
+        &self.blocks
+    }
+
+    fn add_load(&self, force_density: &dyn Fn(&Point3<Real>) -> Vector3<Real>, out: &mut [Real]) {
+        self.for_each_quadrature_point(3, &mut |d, p, w| {
+            let dup = &self.duplicates[d];
+            let n = self.tets[dup.tet as usize].shape.barycentric(&p);
+            let f = force_density(&p) * w;
+            for c in 0..4 {
+                let i = 3 * dup.nodes[c] as usize;
+                for a in 0..3 {
+                    out[i + a] += n[c] * f[a];
+                }
+            }
+        });
+    }
+
+    fn embed(&self, points: &[Point3<Real>]) -> Result<Embedding, EmbedError> {
+        let mut embedding = Embedding::new();
+        for (index, p) in points.iter().enumerate() {
+            let Some((d, w)) = self.locate(p) else {
+                return Err(EmbedError::Outside { index, x: p.x, y: p.y, z: p.z });
+            };
+            embedding.push_row(&self.duplicates[d].nodes, &w);
+        }
+        Ok(embedding)
+    }
+
+    fn visit_field(&self, displacement: &[Real], min_degree: usize, visit: &mut dyn FnMut(&FieldSample)) {
+        self.for_each_quadrature_point(min_degree.max(1), &mut |d, p, w| {
+            let dup = &self.duplicates[d];
+            let shape = &self.tets[dup.tet as usize].shape;
+            let n = shape.barycentric(&p);
+            let mut u = Vector3::zeros();
+            let mut gradient = Matrix3::zeros();
+            for c in 0..4 {
+                let i = 3 * dup.nodes[c] as usize;
+                let uc = Vector3::new(displacement[i], displacement[i + 1], displacement[i + 2]);
+                u += uc * n[c];
+                gradient += uc * shape.gradients[c].transpose();
+            }
+            visit(&FieldSample { position: p, weight: w, displacement: u, gradient });
+        });
+    }
+
+    fn as_cuttable(&mut self) -> Option<&mut dyn Cuttable> {
+        Some(self)
+    }
+}
+
+impl Cuttable for VirtualNodeMesh {
+    fn cut(&mut self, surface: &CutSurface) -> Result<TopologyChange, TopologyError> {
+        match surface {
+            CutSurface::Plane { point, normal } => self.cut_plane(point, normal),
+            CutSurface::Triangles(t) => self.cut_triangles(t),
+        }
+    }
+}
+
+/// What one cut does to the duplicates it touches.
+enum CutOp<'a> {
+    Triangles(&'a [[Point3<Real>; 3]]),
+    Plane([Point3<Real>; 3]),
+}
+
+impl VirtualNodeMesh {
+    /// Cuts by the whole plane through `point` with normal `normal` (exact side decisions against
+    /// the plane through `point`, `point + h t₁`, `point + h t₂` for two tangents `t₁, t₂`;
+    /// axis-aligned normals give exactly axis-aligned planes).
+    pub fn cut_plane(&mut self, point: &Point3<Real>, normal: &Vector3<Real>) -> Result<TopologyChange, TopologyError> {
+        let len = normal.norm();
+        if !(len.is_finite() && len > 0.0) || !point.iter().all(|x| x.is_finite()) {
+            return Err(TopologyError::Invalid(format!("cut plane through {point:?} with normal {normal:?}")));
+        }
+        let n = normal / len;
+        let h = self.lattice.h;
+        let axis = (0..3).find(|&a| n[a].abs() == 1.0);
+        let (t1, t2) = match axis {
+            Some(a) => (Vector3::ith((a + 1) % 3, h), Vector3::ith((a + 2) % 3, h)),
+            None => {
+                let helper = if n.x.abs() <= n.y.abs() && n.x.abs() <= n.z.abs() {
+                    Vector3::x()
+                } else if n.y.abs() <= n.z.abs() {
+                    Vector3::y()
+                } else {
+                    Vector3::z()
+                };
+                let t1 = n.cross(&helper).normalize();
+                (t1 * h, n.cross(&t1) * h)
+            }
+        };
+        let plane = [*point, point + t1, point + t2];
+        let margin = 1e-9 * h;
+        let selected: Vec<(u32, Vec<u32>)> = (0..self.duplicates.len() as u32)
+            .filter(|&d| {
+                let (lo, hi) = self.duplicates[d as usize].cells.bounds();
+                let (mut below, mut above) = (false, false);
+                for c in 0..8 {
+                    let corner = Point3::new(
+                        if c & 1 == 0 { lo.x } else { hi.x },
+                        if c & 2 == 0 { lo.y } else { hi.y },
+                        if c & 4 == 0 { lo.z } else { hi.z },
+                    );
+                    let s = n.dot(&(corner - point));
+                    below |= s <= margin;
+                    above |= s >= -margin;
+                }
+                below && above
+            })
+            .map(|d| (d, Vec::new()))
+            .collect();
+        self.apply_cut(selected, CutOp::Plane(plane))
+    }
+
+    /// Cuts by a triangle soup (rest coordinates): material is separated exactly where a
+    /// triangle covers it. Exactly degenerate triangles cut nothing; non-finite ones are an error.
+    pub fn cut_triangles(&mut self, triangles: &[[Point3<Real>; 3]]) -> Result<TopologyChange, TopologyError> {
+        if let Some(i) = triangles.iter().position(|t| !t.iter().all(|p| p.iter().all(|x| x.is_finite()))) {
+            return Err(TopologyError::Invalid(format!(
+                "cut triangle {i} has a non-finite corner: {:?}",
+                triangles[i]
+            )));
+        }
+        let mut tris_of_dup: HashMap<u32, Vec<u32>> = HashMap::new();
+        for (i, tri) in triangles.iter().enumerate() {
+            let tb = bounds(tri);
+            for t in candidate_tets(&self.lattice, &self.cube_tets, tri) {
+                let corners = self.tets[t as usize].shape.corners;
+                if !boxes_overlap(bounds(&corners), tb) {
+                    continue;
+                }
+                for &d in &self.dups_of_tet[t as usize] {
+                    if boxes_overlap(self.duplicates[d as usize].cells.bounds(), tb) {
+                        let list = tris_of_dup.entry(d).or_default();
+                        if list.last() != Some(&(i as u32)) {
+                            list.push(i as u32);
+                        }
+                    }
+                }
+            }
+        }
+        let mut touched: Vec<(u32, Vec<u32>)> = tris_of_dup.into_iter().collect();
+        touched.sort_unstable_by_key(|t| t.0);
+        self.apply_cut(touched, CutOp::Triangles(triangles))
+    }
+
+    fn apply_cut(&mut self, touched: Vec<(u32, Vec<u32>)>, op: CutOp<'_>) -> Result<TopologyChange, TopologyError> {
+        let results: Vec<(u32, Option<Vec<(Arrangement, Real)>>)> = touched
+            .par_iter()
+            .map(|(d, tris)| {
+                let mut cells = self.duplicates[*d as usize].cells.clone();
+                let changed = match &op {
+                    CutOp::Triangles(triangles) => {
+                        let mut changed = false;
+                        for &t in tris {
+                            changed |= cells.cut(&triangles[t as usize], Cover::Cut);
+                        }
+                        changed
+                    }
+                    CutOp::Plane(plane) => cells.cut_plane(plane, Cover::Cut),
+                };
+                if !changed {
+                    return (*d, None);
+                }
+                let regions = cells.regions();
+                (*d, Some(regions.into_iter().map(|(c, v)| (cells.restricted(&c), v)).collect()))
+            })
+            .collect();
+        let old_dups = self.duplicates.len();
+        let old_nodes_count = self.node_lattice.len();
+        if results.iter().all(|r| r.1.is_none()) {
+            self.last_cut = CutStats {
+                touched: touched.len(),
+                duplicates: (old_dups, old_dups),
+                nodes: (old_nodes_count, old_nodes_count),
+            };
+            return Ok(TopologyChange {
+                epoch: self.epoch,
+                remap: DofRemap::Identity,
+                frames: FrameRemap::Identity,
+                pattern_changed: false,
+            });
+        }
+        let mut replaced: HashMap<u32, Vec<(Arrangement, Real)>> =
+            results.into_iter().filter_map(|(d, r)| r.map(|r| (d, r))).collect();
+        let old = std::mem::take(&mut self.duplicates);
+        let old_nodes: Vec<[u32; 4]> = old.iter().map(|d| d.nodes).collect();
+        let mut parent = Vec::with_capacity(old.len() + replaced.len());
+        for (i, dup) in old.into_iter().enumerate() {
+            match replaced.remove(&(i as u32)) {
+                Some(children) => {
+                    for (cells, volume) in children {
+                        parent.push(i as u32);
+                        self.duplicates.push(Duplicate { tet: dup.tet, cells, volume, nodes: dup.nodes });
+                    }
+                }
+                None => {
+                    parent.push(i as u32);
+                    self.duplicates.push(dup);
+                }
+            }
+        }
+        let gather = self
+            .rebuild_topology(Some((&old_nodes, &parent)))
+            .map_err(|e| TopologyError::Invalid(format!("rebuilding after the cut failed: {e}")))?;
+        self.epoch += 1;
+        self.last_cut = CutStats {
+            touched: touched.len(),
+            duplicates: (old_dups, self.duplicates.len()),
+            nodes: (old_nodes_count, self.node_lattice.len()),
+        };
+        Ok(TopologyChange {
+            epoch: self.epoch,
+            remap: DofRemap::Gather(gather),
+            frames: FrameRemap::Gather(parent),
+            pattern_changed: true,
+        })
+    }
+}
+
+/// Projection axis of face `f` of a lattice tetrahedron.
+fn face_axis(tet: &LatticeTet, f: usize) -> usize {
+    let [a, b, c] = TET_FACES[f].map(|i| tet.shape.corners[i]);
+    largest_component(&(b - a).cross(&(c - a)))
+}
+
+fn contiguous(
+    a: &FacePieces,
+    b: &FacePieces,
+    threshold: Real,
+    scratch: &mut (Vec<Point2<Real>>, Vec<Point2<Real>>),
+) -> bool {
+    let any_area =
+        |pieces: &[Vec<Point2<Real>>]| pieces.iter().any(|p| crate::predicates::polygon_area_2d(p).abs() > threshold);
+    match (a, b) {
+        (FacePieces::Whole, FacePieces::Whole) => true,
+        (FacePieces::Whole, FacePieces::Pieces(p)) | (FacePieces::Pieces(p), FacePieces::Whole) => any_area(p),
+        (FacePieces::Pieces(pa), FacePieces::Pieces(pb)) => {
+            pa.iter().any(|x| pb.iter().any(|y| convex_overlap_area(x, y, scratch) > threshold))
+        }
+    }
+}
+
+/// Lattice tetrahedra (indices into the cube map's numbering) in cubes the triangle's bounding
+/// box touches, with one cube of margin.
+fn candidate_tets(lattice: &BccLattice, cube_tets: &HashMap<[i32; 3], Vec<u32>>, tri: &[Point3<Real>; 3]) -> Vec<u32> {
+    let (lo, hi) = bounds(tri);
+    let (a, b) = (lattice.cube_of(&lo), lattice.cube_of(&hi));
+    let clamp = |c: i32, axis: usize| c.clamp(-1, lattice.dims[axis]);
+    let mut out = Vec::new();
+    for i in clamp(a[0] - 1, 0)..=clamp(b[0] + 1, 0) {
+        for j in clamp(a[1] - 1, 1)..=clamp(b[1] + 1, 1) {
+            for k in clamp(a[2] - 1, 2)..=clamp(b[2] + 1, 2) {
+                if let Some(list) = cube_tets.get(&[i, j, k]) {
+                    out.extend_from_slice(list);
+                }
+            }
+        }
+    }
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+fn bounds(points: &[Point3<Real>]) -> (Point3<Real>, Point3<Real>) {
+    let mut lo = Point3::from([Real::INFINITY; 3]);
+    let mut hi = Point3::from([Real::NEG_INFINITY; 3]);
+    for p in points {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    (lo, hi)
+}
+
+fn boxes_overlap(a: (Point3<Real>, Point3<Real>), b: (Point3<Real>, Point3<Real>)) -> bool {
+    (0..3).all(|k| a.0[k] <= b.1[k] && b.0[k] <= a.1[k])
+}
+
+/// The closed, outward oriented surface of the box `[lo, hi]` (12 triangles).
+pub fn box_surface(lo: Point3<Real>, hi: Point3<Real>) -> TriangleMesh {
+    let v: Vec<Point3<Real>> = (0..8)
+        .map(|i| {
+            Point3::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if i & 2 == 0 { lo.y } else { hi.y },
+                if i & 4 == 0 { lo.z } else { hi.z },
+            )
+        })
+        .collect();
+    let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+    let triangles = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
+    TriangleMesh::new(v, triangles)
+}
+
+/// Union–find with path halving.
+struct UnionFind {
+    parent: Vec<usize>,
+}
+
+impl UnionFind {
+    fn new(n: usize) -> Self {
+        Self { parent: (0..n).collect() }
+    }
+
+    fn find(&mut self, mut i: usize) -> usize {
+        while self.parent[i] != i {
+            self.parent[i] = self.parent[self.parent[i]];
+            i = self.parent[i];
+        }
+        i
+    }
+
+    fn union(&mut self, a: usize, b: usize) {
+        let (ra, rb) = (self.find(a), self.find(b));
+        if ra != rb {
+            self.parent[ra.max(rb)] = ra.min(rb);
+        }
+    }
+}
