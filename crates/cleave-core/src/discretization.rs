@@ -143,10 +143,49 @@ pub enum CutSurface {
     Triangles(Vec<[Point3<Real>; 3]>),
 }
 
+/// The render surface of a cut (or cuttable) body in its current topology: the original surface
+/// clipped to the material that owns it plus the faces cuts have opened, each vertex embedded in
+/// the element that owns it. Every piece's surface is closed.
+#[derive(Clone, Debug, Default)]
+pub struct EmbeddedSurface {
+    /// Vertex positions in rest space (vertices of different pieces may coincide).
+    pub rest_vertices: Vec<Point3<Real>>,
+    /// Outward triangles over the vertices.
+    pub triangles: Vec<[u32; 3]>,
+    /// Per triangle: lies on a cut (`true`) or on the original surface.
+    pub on_cut: Vec<bool>,
+    /// Per vertex, the row that evaluates it from the DOFs.
+    pub embedding: Embedding,
+}
+
+/// A connected component of a discretization.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Piece {
+    /// Elements (duplicates, polyhedra, cubes) in it.
+    pub elements: usize,
+    /// Material volume [m³].
+    pub volume: Real,
+    /// Mass [kg].
+    pub mass: Real,
+}
+
 /// Backends that can be cut by a surface.
 pub trait Cuttable {
-    /// Cuts the material along `surface` at the rest configuration.
+    /// Cuts the material along `surface` at the rest configuration. A cut that separates
+    /// nothing returns a change with the current epoch and `DofRemap::Identity`, which the
+    /// integrator skips.
     fn cut(&mut self, surface: &CutSurface) -> Result<TopologyChange, TopologyError>;
+
+    /// The render surface of the current topology, if the backend makes its own (cut bodies
+    /// must: the input surface no longer describes them).
+    fn surface(&self) -> Option<EmbeddedSurface> {
+        None
+    }
+
+    /// The connected components of the current topology with their volume and mass.
+    fn pieces(&self) -> Vec<Piece> {
+        Vec::new()
+    }
 }
 
 /// Backends that fracture under tensile stress.

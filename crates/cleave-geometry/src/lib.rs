@@ -24,6 +24,7 @@
 //! The library performs no file or terminal I/O and reports bad input as
 //! [`GeometryError`] values naming the offending triangle, edge, vertex or OBJ line.
 
+mod blade;
 mod error;
 mod hex_slice;
 mod inside;
@@ -37,6 +38,7 @@ mod polyhedral;
 mod validate;
 mod voxelize;
 
+pub use blade::{Blade, BladeError, Keyframe};
 pub use error::GeometryError;
 pub use hex_slice::{
     DEFAULT_MERGE_BELOW, GRID_MARGIN, HexSliceOptions, HexSlicing, MAX_SLICE_CELLS, MIN_FACE_AREA, hex_slice,

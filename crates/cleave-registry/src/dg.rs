@@ -1,8 +1,12 @@
-//! The DG backend (kaufmann2008) registered with the comparison harness: Dirichlet data is
+//! The DG backend (kaufmann2008): its scene settings and its comparison variants. Dirichlet data is
 //! imposed weakly (Nitsche/interior-penalty boundary terms on the faces whose centroid lies in the
 //! Dirichlet region), handed over as a load vector; no DOF is pinned.
 
-use cleave_core::{Material, Matrix3, Real, Vector3};
+use crate::backend::{
+    Backend, BackendError, BuiltSolid, Capabilities, Region, ResolvedPins, RestSurface, Shape, SolidRequest, box_dims,
+    cell_size_for, one_size, parse_settings,
+};
+use cleave_core::{Discretization, Material, Matrix3, Point3, Real, Vector3};
 use cleave_dg::{DgMesh, DgOptions, Flux, WeakDirichlet};
 use cleave_geometry::PolyhedralMesh;
 use cleave_testkit::compare::{
@@ -98,4 +102,142 @@ impl CompareBackend for DgBackend {
             ExtremeCase::Stretch100 => Ok(stretch_start(built, grid)),
         }
     }
+}
+
+/// The numerical flux in scene settings.
+#[derive(Clone, Copy, Debug, Default, serde::Deserialize, PartialEq, Eq)]
+enum FluxSetting {
+    #[default]
+    InteriorPenalty,
+    BabuskaZlamal,
+}
+
+/// The scene settings of the DG backend.
+#[derive(Clone, Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DgSettings {
+    /// Slicing cell edge [m].
+    #[serde(default)]
+    cell_size: Option<Real>,
+    /// Or: about this many elements.
+    #[serde(default)]
+    target_elements: Option<usize>,
+    /// Polynomial degree, 1 or 2.
+    #[serde(default = "one")]
+    degree: usize,
+    #[serde(default)]
+    flux: FluxSetting,
+    /// Start of the penalty doubling.
+    #[serde(default)]
+    penalty: Option<Real>,
+    /// Factor on the first positive definite penalty (docs/math/dg.md §9).
+    #[serde(default)]
+    penalty_margin: Option<Real>,
+}
+
+fn one() -> usize {
+    1
+}
+
+impl Backend for DgBackend {
+    fn name(&self) -> &str {
+        "dg"
+    }
+
+    fn summary(&self) -> &str {
+        "discontinuous Galerkin FEM on polyhedra, BZ/IP fluxes, degree 1-2 (Kaufmann et al. 2008)"
+    }
+
+    fn capabilities(&self) -> Capabilities {
+        Capabilities::default()
+    }
+
+    fn build_solid(&self, settings: &str, request: &SolidRequest) -> Result<BuiltSolid, BackendError> {
+        let settings: DgSettings = parse_settings(settings)?;
+        let build = |e: &dyn std::fmt::Display| BackendError::Build(e.to_string());
+        let (poly, h, surface) = match request.shape {
+            Shape::Surface(surface) => {
+                let h = one_size("dg", settings.cell_size, settings.target_elements, "target_elements", |target| {
+                    cell_size_for(surface, target, 0.1, |h| {
+                        cleave_geometry::hex_slice(surface, h).map(|s| s.mesh.num_elements).map_err(|e| e.to_string())
+                    })
+                })?;
+                let slicing = cleave_geometry::hex_slice(surface, h).map_err(|e| build(&e))?;
+                let rest = RestSurface { vertices: surface.vertices.clone(), triangles: surface.triangles.clone() };
+                (slicing.mesh, h, rest)
+            }
+            Shape::Box { min, max } => {
+                let h = settings
+                    .cell_size
+                    .ok_or_else(|| BackendError::Build("a Box object needs dg settings with `cell_size`".into()))?;
+                let dims = box_dims(&min, &max, h)?;
+                let grid = PolyhedralMesh::grid(Point3::from(min), h, dims);
+                let triangles = polyhedral_boundary(&grid);
+                let rest = RestSurface { vertices: grid.vertices.clone(), triangles };
+                (grid, h, rest)
+            }
+        };
+        let flux = match settings.flux {
+            FluxSetting::InteriorPenalty => Flux::InteriorPenalty,
+            FluxSetting::BabuskaZlamal => Flux::BabuskaZlamal,
+        };
+        let mut options = DgOptions::new(settings.degree, flux);
+        if let Some(margin) = settings.penalty_margin {
+            options.penalty_margin = margin;
+        }
+        if let Some(eta) = settings.penalty {
+            options.penalty = eta;
+        }
+        // Pins clamp the boundary faces whose centroid lies in a pin region (weak Dirichlet
+        // data u = 0: DG has no nodal values to hold).
+        for (index, region) in request.pins.iter().enumerate() {
+            let clamps_a_face = poly.faces.iter().enumerate().any(|(f, face)| {
+                face.outer.is_none()
+                    && region.contains(cleave_geometry::face_area_normal_centroid(&poly, f).2.coords.as_slice())
+            });
+            if !clamps_a_face {
+                return Err(BackendError::Build(format!(
+                    "pins[{index}]: the region {:?}..{:?} contains no boundary face centroid",
+                    region.min, region.max
+                )));
+            }
+        }
+        let on_boundary = |p: &Point3<Real>| request.pins.iter().any(|region| region.contains(p.coords.as_slice()));
+        let zero = |_: &Point3<Real>| Vector3::zeros();
+        let dirichlet = WeakDirichlet { on_boundary: &on_boundary, data: &zero };
+        let dg = DgMesh::new(poly, request.material, options, (!request.pins.is_empty()).then_some(&dirichlet))
+            .map_err(|e| BackendError::Build(format!("discretization: {e}")))?;
+        let pins = ResolvedPins { pinned_dofs: Vec::new(), extra_load: dg.dirichlet_load().to_vec() };
+        let elements = dg.num_elements();
+        Ok(BuiltSolid { discretization: Box::new(dg), elements, element_size: h, pins, surface })
+    }
+
+    fn resolve_pins(
+        &self,
+        _discretization: &dyn Discretization,
+        pins: &[Region],
+    ) -> Result<ResolvedPins, BackendError> {
+        // The weak clamp is built into the DG mesh with its faces; DG has no topology changes
+        // yet, so pins are only resolved by `build_solid`.
+        if pins.is_empty() {
+            Ok(ResolvedPins::default())
+        } else {
+            Err(BackendError::Build("dg resolves its weak pins only when the mesh is built".into()))
+        }
+    }
+
+    fn compare(&self) -> &dyn CompareBackend {
+        self
+    }
+}
+
+/// The boundary faces of a polyhedral mesh as fan triangles over its vertices, outward.
+fn polyhedral_boundary(mesh: &PolyhedralMesh) -> Vec<[u32; 3]> {
+    let mut triangles = Vec::new();
+    for face in mesh.faces.iter().filter(|f| f.outer.is_none()) {
+        for k in 1..face.polygon.len().saturating_sub(1) {
+            triangles.push([face.polygon[0], face.polygon[k], face.polygon[k + 1]]);
+        }
+    }
+    triangles
 }

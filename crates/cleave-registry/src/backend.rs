@@ -1,0 +1,224 @@
+//! The one registration of a backend: how a scene builds it from its own RON settings, which
+//! capabilities it has, how its pins are resolved on a (possibly cut) discretization, and its
+//! comparison variants. The scene runner and `cargo xtask compare`/`stability` go through this
+//! trait only, so a new backend is one file here and one line in [`crate::backends`].
+
+use cleave_core::{Discretization, Point3, Real};
+use cleave_geometry::TriangleMesh;
+use cleave_testkit::compare::CompareBackend;
+use serde::de::DeserializeOwned;
+
+/// An axis-aligned box in rest space (pins are kept as regions and resolved again after every
+/// topology change).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Region {
+    /// Minimum corner.
+    pub min: [Real; 3],
+    /// Maximum corner.
+    pub max: [Real; 3],
+}
+
+impl Region {
+    /// Whether `p` lies in the region (closed, with a 1e-9 tolerance for points on its faces).
+    pub fn contains(&self, p: &[Real]) -> bool {
+        (0..3).all(|a| p[a] >= self.min[a] - 1e-9 && p[a] <= self.max[a] + 1e-9)
+    }
+}
+
+/// The solid a scene asks for.
+#[derive(Clone, Copy, Debug)]
+pub enum Shape<'a> {
+    /// A closed surface mesh (already transformed into place).
+    Surface(&'a TriangleMesh),
+    /// An axis-aligned box.
+    Box {
+        /// Minimum corner.
+        min: [Real; 3],
+        /// Maximum corner.
+        max: [Real; 3],
+    },
+}
+
+/// What a scene asks a backend to build.
+#[derive(Clone, Copy, Debug)]
+pub struct SolidRequest<'a> {
+    /// The solid.
+    pub shape: Shape<'a>,
+    /// Its material.
+    pub material: cleave_core::Material,
+    /// Pinned regions.
+    pub pins: &'a [Region],
+}
+
+/// A render surface in rest space: triangles over vertices, and which triangles lie on a cut.
+#[derive(Clone, Debug, Default)]
+pub struct RestSurface {
+    /// Vertex positions in rest space.
+    pub vertices: Vec<Point3<Real>>,
+    /// Outward triangles.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Pins resolved on a discretization: strongly pinned DOFs and/or a weak boundary load.
+#[derive(Clone, Debug, Default)]
+pub struct ResolvedPins {
+    /// Scalar DOFs held fixed.
+    pub pinned_dofs: Vec<usize>,
+    /// A constant load of weakly imposed data (empty = none).
+    pub extra_load: Vec<Real>,
+}
+
+/// A built solid.
+pub struct BuiltSolid {
+    /// The discretization.
+    pub discretization: Box<dyn Discretization>,
+    /// Elements (cubes, polyhedra, tetrahedra).
+    pub elements: usize,
+    /// Characteristic element size [m].
+    pub element_size: Real,
+    /// The pins, resolved.
+    pub pins: ResolvedPins,
+    /// The surface to render (the input mesh, or the box's boundary).
+    pub surface: RestSurface,
+}
+
+/// What a backend can do beyond simulating.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Capabilities {
+    /// It can be cut (`Discretization::as_cuttable`).
+    pub cut: bool,
+    /// It fractures (`Discretization::as_fracturable`).
+    pub fracture: bool,
+    /// It refines (`Discretization::as_refinable`).
+    pub refine: bool,
+}
+
+/// Why a backend could not build a scene's solid.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum BackendError {
+    /// The backend's settings in the scene are malformed; the position is within the settings'
+    /// own RON text (1-based).
+    #[error("{line}:{column}: {message}")]
+    Settings {
+        /// line within the settings text
+        line: usize,
+        /// column within the settings text
+        column: usize,
+        /// what is wrong
+        message: String,
+    },
+    /// The settings are well formed but the solid cannot be built with them.
+    #[error("{0}")]
+    Build(String),
+}
+
+/// Parses a backend's settings from its RON text (`implicit_some`, so `cell_size: 0.25` fills an
+/// `Option`), with the error's position inside that text.
+pub fn parse_settings<T: DeserializeOwned>(text: &str) -> Result<T, BackendError> {
+    let options = ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
+    options.from_str::<T>(text).map_err(|error| BackendError::Settings {
+        line: error.span.start.line,
+        column: error.span.start.col,
+        message: error.code.to_string(),
+    })
+}
+
+/// One registration per backend.
+pub trait Backend: Send + Sync {
+    /// Name as in scenes and `--backend` ("voxel", "dg", "virtualnode").
+    fn name(&self) -> &str;
+
+    /// One line for `--backend` listings: method and paper.
+    fn summary(&self) -> &str;
+
+    /// What it can do.
+    fn capabilities(&self) -> Capabilities;
+
+    /// Builds the scene's solid from this backend's settings (`settings` is the RON text of the
+    /// scene's entry for this backend, e.g. `(cell_size: 0.25)`).
+    fn build_solid(&self, settings: &str, request: &SolidRequest) -> Result<BuiltSolid, BackendError>;
+
+    /// Resolves the pin regions on `discretization` (after a topology change, pins are resolved
+    /// again here). The default pins every node whose rest position lies in a region, right for
+    /// nodal backends.
+    fn resolve_pins(&self, discretization: &dyn Discretization, pins: &[Region]) -> Result<ResolvedPins, BackendError> {
+        nodal_pins(discretization, pins)
+    }
+
+    /// Its registration with the comparison harness.
+    fn compare(&self) -> &dyn CompareBackend;
+}
+
+/// Every node whose rest position lies in a region, all three components; an error names a
+/// region that holds no node.
+pub fn nodal_pins(discretization: &dyn Discretization, pins: &[Region]) -> Result<ResolvedPins, BackendError> {
+    let mut pinned_dofs = Vec::new();
+    for (index, region) in pins.iter().enumerate() {
+        let before = pinned_dofs.len();
+        for (node, p) in discretization.rest_dofs().chunks_exact(3).enumerate() {
+            if region.contains(p) {
+                pinned_dofs.extend(3 * node..3 * node + 3);
+            }
+        }
+        if pinned_dofs.len() == before {
+            return Err(BackendError::Build(format!(
+                "pins[{index}]: the region {:?}..{:?} contains no node",
+                region.min, region.max
+            )));
+        }
+    }
+    pinned_dofs.sort_unstable();
+    pinned_dofs.dedup();
+    Ok(ResolvedPins { pinned_dofs, extra_load: Vec::new() })
+}
+
+/// Cells per axis of a box of cell size `h`, or why it is not a whole number of cells.
+pub fn box_dims(min: &[Real; 3], max: &[Real; 3], h: Real) -> Result<[usize; 3], BackendError> {
+    let dims: Vec<usize> = (0..3).map(|a| ((max[a] - min[a]) / h).round().max(0.0) as usize).collect();
+    if dims.contains(&0) || (0..3).any(|a| ((max[a] - min[a]) - dims[a] as Real * h).abs() > 1e-9 * h.max(1.0)) {
+        return Err(BackendError::Build(format!(
+            "the box {min:?}..{max:?} is not a whole number of cells of size {h}"
+        )));
+    }
+    Ok([dims[0], dims[1], dims[2]])
+}
+
+/// A cell size giving about `target` elements: start from volume/target and correct by the
+/// cube root of the measured count ratio a few times.
+pub fn cell_size_for(
+    mesh: &TriangleMesh,
+    target: usize,
+    tolerance: Real,
+    count: impl Fn(Real) -> Result<usize, String>,
+) -> Result<Real, BackendError> {
+    let volume = mesh.signed_volume();
+    if volume.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) || target == 0 {
+        return Err(BackendError::Build(format!("cannot size {target} elements in an enclosed volume of {volume}")));
+    }
+    let mut h = (volume / target as Real).cbrt();
+    for _ in 0..4 {
+        let ratio = count(h).map_err(BackendError::Build)? as Real / target as Real;
+        if (ratio - 1.0).abs() < tolerance {
+            break;
+        }
+        h *= ratio.cbrt();
+    }
+    Ok(h)
+}
+
+/// The cell size of settings that give exactly one of `cell_size` and a target count.
+pub fn one_size(
+    backend: &str,
+    cell_size: Option<Real>,
+    target: Option<usize>,
+    target_name: &str,
+    from_target: impl FnOnce(usize) -> Result<Real, BackendError>,
+) -> Result<Real, BackendError> {
+    match (cell_size, target) {
+        (Some(h), None) if h.is_finite() && h > 0.0 => Ok(h),
+        (None, Some(t)) if t > 0 => from_target(t),
+        _ => Err(BackendError::Build(format!(
+            "{backend} needs exactly one of `cell_size` (> 0) and `{target_name}` (> 0)"
+        ))),
+    }
+}
