@@ -47,6 +47,48 @@ pub enum StepErrorKind {
         /// 1-based pivot in faer's permuted order
         pivot: usize,
     },
+    /// A load vector (the static load, the constant extra load of the constraints) whose length
+    /// is not the system's number of scalar DOFs.
+    #[error("{what} has length {len} but the system has {dofs} DOFs")]
+    LoadLength {
+        /// which load ("load", "extra load")
+        what: &'static str,
+        /// its length
+        len: usize,
+        /// scalar DOFs of the system
+        dofs: usize,
+    },
+    /// A pinned or prescribed scalar DOF beyond the system.
+    #[error("{what} DOF {dof} is out of range (0..{dofs})")]
+    DofOutOfRange {
+        /// which list ("pinned", "prescribed")
+        what: &'static str,
+        /// the offending DOF index
+        dof: usize,
+        /// scalar DOFs of the system
+        dofs: usize,
+    },
+    /// A row of an embedding in the constraints (contact points, penalty pins) names a node the
+    /// discretization does not have.
+    #[error("{what} {row} names node {node}, but there are only {nodes} nodes")]
+    NodeOutOfRange {
+        /// which embedding ("contact point", "penalty pin")
+        what: &'static str,
+        /// the row (point) index
+        row: usize,
+        /// the offending node
+        node: u32,
+        /// nodes of the discretization
+        nodes: usize,
+    },
+    /// Penalty pins with a different number of targets than embedded points.
+    #[error("penalty pins have {targets} targets for {points} points")]
+    PinTargets {
+        /// targets given
+        targets: usize,
+        /// embedded points
+        points: usize,
+    },
     /// Something else from the sparse solver.
     #[error("sparse solver failure: {0}")]
     Solver(String),

@@ -13,7 +13,7 @@ use crate::constraints::Constraints;
 use crate::error::{StepError, StepErrorKind};
 use crate::system::AssembledSystem;
 use crate::two_level::TwoLevel;
-use cleave_core::{Discretization, DofRemap, Matrix3, Point3, Real, TopologyChange, Vector3};
+use cleave_core::{Discretization, Matrix3, Point3, Real, TopologyChange, Vector3};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -215,20 +215,19 @@ impl Integrator {
         }
         if !self.constraints.extra_load.is_empty() {
             if self.constraints.extra_load.len() != n {
-                return Err(StepErrorKind::Solver(format!(
-                    "extra load has length {} but the system has {n} DOFs",
-                    self.constraints.extra_load.len()
-                )));
+                let len = self.constraints.extra_load.len();
+                return Err(StepErrorKind::LoadLength { what: "extra load", len, dofs: n });
             }
             self.external_force.iter_mut().zip(&self.constraints.extra_load).for_each(|(f, e)| *f += e);
         }
         self.pinned = vec![false; n];
         for &d in &self.constraints.pinned_dofs {
             if d >= n {
-                return Err(StepErrorKind::Solver(format!("pinned DOF {d} out of range (0..{n})")));
+                return Err(StepErrorKind::DofOutOfRange { what: "pinned", dof: d, dofs: n });
             }
             self.pinned[d] = true;
         }
+        self.check_embeddings(discretization.num_nodes())?;
         let rest = discretization.rest_dofs();
         let (mut lo, mut hi) = (Point3::from([Real::MAX; 3]), Point3::from([Real::MIN; 3]));
         for p in rest.chunks_exact(3) {
@@ -270,6 +269,26 @@ impl Integrator {
         let contacts = self.constraints.contact_points.as_ref().map_or(0, |c| c.len());
         self.work.contact_depth = vec![0.0; contacts * self.constraints.planes.len()];
         self.epoch = discretization.epoch();
+        Ok(())
+    }
+
+    /// Contact and penalty-pin rows must name existing nodes, and every pin needs one target:
+    /// checked once per epoch so that the per-step loops can index without failing.
+    fn check_embeddings(&self, nodes: usize) -> Result<(), StepErrorKind> {
+        let contacts = self.constraints.contact_points.as_ref().map(|points| ("contact point", points));
+        let pins = self.constraints.penalty_pins.as_ref().map(|pins| ("penalty pin", &pins.points));
+        for (what, points) in contacts.into_iter().chain(pins) {
+            for row in 0..points.len() {
+                if let Some(&node) = points.row(row).0.iter().find(|&&node| node as usize >= nodes) {
+                    return Err(StepErrorKind::NodeOutOfRange { what, row, node, nodes });
+                }
+            }
+        }
+        if let Some(pins) = &self.constraints.penalty_pins
+            && pins.targets.len() != pins.points.len()
+        {
+            return Err(StepErrorKind::PinTargets { targets: pins.targets.len(), points: pins.points.len() });
+        }
         Ok(())
     }
 

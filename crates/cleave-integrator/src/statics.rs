@@ -34,10 +34,10 @@ pub fn solve_static(
 ) -> Result<StaticSolution, StepErrorKind> {
     let n = 3 * discretization.num_nodes();
     if load.len() != n {
-        return Err(StepErrorKind::Solver(format!("load has length {} but the system has {n} DOFs", load.len())));
+        return Err(StepErrorKind::LoadLength { what: "load", len: load.len(), dofs: n });
     }
     if let Some(&(d, _)) = prescribed.iter().find(|(d, _)| *d >= n) {
-        return Err(StepErrorKind::Solver(format!("prescribed DOF {d} out of range (0..{n})")));
+        return Err(StepErrorKind::DofOutOfRange { what: "prescribed", dof: d, dofs: n });
     }
     let clock = Instant::now();
     let constraints = Constraints { pinned_dofs: prescribed.iter().map(|&(d, _)| d).collect(), ..Default::default() };

@@ -192,6 +192,11 @@ fn step_failure(error: StepError) -> Verdict {
         kind @ (StepErrorKind::CgNotConverged { .. }
         | StepErrorKind::NotPositiveDefinite { .. }
         | StepErrorKind::Solver(_)) => Verdict::SolverFailed { step, message: kind.to_string() },
+        // Malformed input (a registration's bug), not a property of the cell.
+        kind @ (StepErrorKind::LoadLength { .. }
+        | StepErrorKind::DofOutOfRange { .. }
+        | StepErrorKind::NodeOutOfRange { .. }
+        | StepErrorKind::PinTargets { .. }) => Verdict::Error(kind.to_string()),
     }
 }
 
