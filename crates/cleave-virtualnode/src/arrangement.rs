@@ -40,6 +40,14 @@ pub const OVERLAP_TOLERANCE: f64 = 1e-12;
 
 const MAX_VERTEX_PLANES: usize = 8;
 
+/// Distance, relative to the tetrahedron's longest edge, below which a rounded intersection
+/// point is taken to coincide with a vertex.
+pub const WELD_TOLERANCE: f64 = 1e-13;
+
+/// Number of splits refused (process-wide) because the rounded geometry gave no closed cap or
+/// parts that are not closed: a diagnostic the tests read; each refusal keeps a cell whole.
+pub static REFUSED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
 /// Who covers a face.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Cover {
@@ -170,6 +178,17 @@ struct PreparedTriangle {
     sides: [(u32, bool); 3],
 }
 
+/// A face projected for overlap tests: its cell, outward side, 2D loop and 2D bounds.
+type FacePolygon = (usize, bool, Vec<Point2<f64>>, [f64; 4]);
+
+/// Removes consecutive repeated vertices (cyclically).
+fn dedup_cyclic(v: &mut Vec<u32>) {
+    v.dedup();
+    while v.len() > 1 && v.first() == v.last() {
+        v.pop();
+    }
+}
+
 /// Whether every directed edge of the cell's faces has its reverse exactly once.
 fn is_closed(cell: &Cell) -> bool {
     let mut edges: Vec<(u32, u32)> = Vec::with_capacity(32);
@@ -255,12 +274,9 @@ impl Arrangement {
         (self.planes.len() as u32 - 1, false)
     }
 
-    /// The intersection of edge `(a, b)` with plane `q` (created once per edge and plane).
-    fn edge_point(&mut self, a: u32, b: u32, q: u32) -> u32 {
-        let key = (a.min(b), a.max(b), q);
-        if let Some(&v) = self.edge_points.get(&key) {
-            return v;
-        }
+    /// The rounded intersection point of edge `(a, b)` with plane `q`, computed from the end
+    /// points in lexicographic order (so both directions give the same bits).
+    fn intersection(&self, a: u32, b: u32, q: u32) -> Point3<f64> {
         let (pa, pb) = (self.point(a), self.point(b));
         let (lo, hi) = if lex_less(&pb, &pa) { (pb, pa) } else { (pa, pb) };
         let plane = &self.planes[q as usize];
@@ -270,7 +286,16 @@ impl Arrangement {
             t = 0.5;
         }
         let t = t.clamp(0.0, 1.0);
-        let mut vertex = Vertex::new(lo + (hi - lo) * t);
+        lo + (hi - lo) * t
+    }
+
+    /// The intersection of edge `(a, b)` with plane `q` (created once per edge and plane).
+    fn edge_point(&mut self, a: u32, b: u32, q: u32) -> u32 {
+        let key = (a.min(b), a.max(b), q);
+        if let Some(&v) = self.edge_points.get(&key) {
+            return v;
+        }
+        let mut vertex = Vertex::new(self.intersection(a, b, q));
         let (va, vb) = (self.vertices[a as usize], self.vertices[b as usize]);
         vertex.add_plane(q);
         for &pl in &va.planes[..va.num_planes as usize] {
@@ -297,57 +322,103 @@ impl Arrangement {
     }
 
     /// Splits `cell` by plane `q` (its own orientation); the cap gets `cover`.
+    ///
+    /// Rounded intersection points closer than [`WELD_TOLERANCE`] (relative to the tetrahedron's
+    /// size) to a vertex of the cell move that vertex onto the plane (it is recorded as lying on
+    /// `q`), and new points that close to each other are merged, so that no edge of zero length
+    /// and no sliver of zero thickness is created. Should the rounded geometry still give a cap
+    /// that is not one closed loop, or parts that are not closed polyhedra, the cell is kept
+    /// whole on the side of its larger part (counted in [`REFUSED`]).
     fn split(&mut self, cell: &Cell, q: u32, cover: Cover) -> Split {
-        let signs = self.classify(cell, q);
-        let has_pos = signs.iter().any(|s| s.1 > 0);
-        let has_neg = signs.iter().any(|s| s.1 < 0);
-        if !has_pos {
+        let mut signs = self.classify(cell, q);
+        if !signs.iter().any(|s| s.1 > 0) {
             return Split::Neg;
         }
-        if !has_neg {
+        if !signs.iter().any(|s| s.1 < 0) {
             return Split::Pos;
         }
+        let tolerance2 = (WELD_TOLERANCE * WELD_TOLERANCE) * self.scale2;
+        // Pass 1: vertices that a rounded intersection point lands on are on the plane.
+        loop {
+            let mut snapped = false;
+            for face in &cell.faces {
+                let n = face.verts.len();
+                for i in 0..n {
+                    let (a, b) = (face.verts[i], face.verts[(i + 1) % n]);
+                    if (Self::lookup(&signs, a) as i32) * (Self::lookup(&signs, b) as i32) >= 0 {
+                        continue;
+                    }
+                    let p = self.intersection(a, b, q);
+                    for s in signs.iter_mut() {
+                        if s.1 != 0 && (self.point(s.0) - p).norm_squared() <= tolerance2 {
+                            s.1 = 0;
+                            snapped = true;
+                        }
+                    }
+                }
+            }
+            if !snapped {
+                break;
+            }
+        }
+        for s in &signs {
+            if s.1 == 0 {
+                self.vertices[s.0 as usize].add_plane(q);
+            }
+        }
+        if !signs.iter().any(|s| s.1 > 0) {
+            return Split::Neg;
+        }
+        if !signs.iter().any(|s| s.1 < 0) {
+            return Split::Pos;
+        }
+        // Pass 2: the two parts, new points merged when they coincide.
+        let mut created: Vec<u32> = Vec::new();
         let mut neg_faces = Vec::with_capacity(cell.faces.len() + 1);
         let mut pos_faces = Vec::with_capacity(cell.faces.len() + 1);
         let mut cap_edges: Vec<(u32, u32)> = Vec::new();
-        let mut on_plane: Vec<u32> = Vec::new();
         for face in &cell.faces {
             let n = face.verts.len();
             let face_signs: Vec<i8> = face.verts.iter().map(|&v| Self::lookup(&signs, v)).collect();
-            if face_signs.iter().all(|&s| s == 0) {
+            if face.plane == q || face_signs.iter().all(|&s| s == 0) {
                 // A face on the plane of a straddling cell: possible only through rounding of
                 // constructed points; the cap replaces it.
-                on_plane.extend_from_slice(&face.verts);
                 continue;
             }
             let mut neg: Vec<u32> = Vec::with_capacity(n + 2);
             let mut pos: Vec<u32> = Vec::with_capacity(n + 2);
-            let mut neg_zero: Vec<bool> = Vec::with_capacity(n + 2);
             for i in 0..n {
                 let (a, b) = (face.verts[i], face.verts[(i + 1) % n]);
                 let (sa, sb) = (face_signs[i], face_signs[(i + 1) % n]);
                 if sa <= 0 {
                     neg.push(a);
-                    neg_zero.push(sa == 0);
                 }
                 if sa >= 0 {
                     pos.push(a);
                 }
-                if sa == 0 {
-                    on_plane.push(a);
-                }
                 if (sa as i32) * (sb as i32) < 0 {
-                    let m = self.edge_point(a, b, q);
+                    let mut m = self.edge_point(a, b, q);
+                    // The edge lies in this face's plane (and, from the face on its other side,
+                    // in that one's): so does the new point.
+                    self.vertices[m as usize].add_plane(face.plane);
+                    let p = self.point(m);
+                    if let Some(&w) =
+                        created.iter().find(|&&w| w != m && (self.point(w) - p).norm_squared() <= tolerance2)
+                    {
+                        m = w;
+                    } else if !created.contains(&m) {
+                        created.push(m);
+                    }
                     neg.push(m);
-                    neg_zero.push(true);
                     pos.push(m);
-                    on_plane.push(m);
                 }
             }
+            dedup_cyclic(&mut neg);
+            dedup_cyclic(&mut pos);
             if neg.len() >= 3 {
                 for i in 0..neg.len() {
                     let j = (i + 1) % neg.len();
-                    if neg_zero[i] && neg_zero[j] {
+                    if Self::lookup(&signs, neg[i]) == 0 && Self::lookup(&signs, neg[j]) == 0 {
                         cap_edges.push((neg[j], neg[i]));
                     }
                 }
@@ -357,12 +428,15 @@ impl Arrangement {
                 pos_faces.push(Face { verts: pos, ..face.clone() });
             }
         }
-        let _ = on_plane;
-        // Degenerate configurations (rounded constructed points that make the cell slightly
-        // non-convex) may give caps that do not close or cells that are not closed surfaces:
-        // then the cell is not split but kept whole on the side of its larger part, so every
-        // cell stays a closed, consistently oriented polyhedron.
+        // A part without volume (all its faces collapsed): the cell lies on the other side.
+        if neg_faces.len() < 3 {
+            return Split::Pos;
+        }
+        if pos_faces.len() < 3 {
+            return Split::Neg;
+        }
         let refuse = |this: &Self, neg_faces: Vec<Face>, pos_faces: Vec<Face>| {
+            REFUSED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
             if this.cell_volume(&Cell { faces: neg_faces }) >= this.cell_volume(&Cell { faces: pos_faces }) {
                 Split::Neg
             } else {
@@ -550,12 +624,7 @@ impl Arrangement {
                 }
                 _ => {
                     let mut cell = cell;
-                    for face in &mut cell.faces {
-                        if face.cover == Cover::Open && face.verts.iter().all(|&v| self.side(v, p) == 0) {
-                            face.cover = cover;
-                            changed = true;
-                        }
-                    }
+                    changed |= self.cover_faces_on(&mut cell, p, cover);
                     out.push(cell);
                 }
             }
@@ -593,16 +662,21 @@ impl Arrangement {
                         out.push(neg);
                         out.push(pos);
                     }
-                    _ => out.push(inner),
+                    _ => {
+                        let mut inner = inner;
+                        self.cover_faces_on(&mut inner, p, cover);
+                        out.push(inner);
+                    }
                 }
                 true
             }
             _ => {
                 // Not split: a face may lie in the plane.
-                let Some(fi) = cell.faces.iter().position(|f| f.verts.iter().all(|&v| self.side(v, p) == 0)) else {
+                let Some(fi) = cell.faces.iter().position(|f| self.face_on(f, p)) else {
                     out.push(cell);
                     return false;
                 };
+
                 if cell.faces[fi].cover != Cover::Open {
                     out.push(cell);
                     return false;
@@ -622,15 +696,28 @@ impl Arrangement {
                 let Some(mut inner) = self.peel(cell, &straddled, out) else {
                     return true;
                 };
-                for face in &mut inner.faces {
-                    if face.cover == Cover::Open && face.verts.iter().all(|&v| self.side(v, p) == 0) {
-                        face.cover = cover;
-                    }
-                }
+                self.cover_faces_on(&mut inner, p, cover);
                 out.push(inner);
                 true
             }
         }
+    }
+
+    /// Whether `face` lies in plane `p`: it was made on it, or all its vertices are on it.
+    fn face_on(&self, face: &Face, p: u32) -> bool {
+        face.plane == p || face.verts.iter().all(|&v| self.side(v, p) == 0)
+    }
+
+    /// Covers the open faces of `cell` lying in plane `p`; returns whether any was.
+    fn cover_faces_on(&self, cell: &mut Cell, p: u32, cover: Cover) -> bool {
+        let mut changed = false;
+        for i in 0..cell.faces.len() {
+            if cell.faces[i].cover == Cover::Open && self.face_on(&cell.faces[i], p) {
+                cell.faces[i].cover = cover;
+                changed = true;
+            }
+        }
+        changed
     }
 
     /// Splits off the parts of `cell` outside the given side planes (pushed to `out`, their caps
@@ -685,7 +772,7 @@ impl Arrangement {
         for key in keys {
             let group = &groups[&key];
             let axis = self.planes[key as usize].axis as usize;
-            let polys: Vec<(usize, bool, Vec<Point2<f64>>, [f64; 4])> = group
+            let polys: Vec<FacePolygon> = group
                 .iter()
                 .map(|&(c, f)| {
                     let face = &self.cells[c].faces[f];

@@ -153,7 +153,7 @@ impl VirtualNodeMesh {
                 }
             }
         }
-        let carved: Vec<Vec<(Arrangement, Real)>> = all
+        let carved: Vec<Vec<Region>> = all
             .par_iter()
             .zip(&tris_of_tet)
             .map(|(corners, tris)| {
@@ -658,6 +658,9 @@ impl Cuttable for VirtualNodeMesh {
     }
 }
 
+/// A region of a cut duplicate: its cells and volume.
+type Region = (Arrangement, Real);
+
 /// What one cut does to the duplicates it touches.
 enum CutOp<'a> {
     Triangles(&'a [[Point3<Real>; 3]]),
@@ -670,7 +673,7 @@ impl VirtualNodeMesh {
     /// axis-aligned normals give exactly axis-aligned planes).
     pub fn cut_plane(&mut self, point: &Point3<Real>, normal: &Vector3<Real>) -> Result<TopologyChange, TopologyError> {
         let len = normal.norm();
-        if !(len.is_finite() && len > 0.0) || !point.iter().all(|x| x.is_finite()) {
+        if !(len.is_finite() && len > 0.0 && point.iter().all(|x| x.is_finite())) {
             return Err(TopologyError::Invalid(format!("cut plane through {point:?} with normal {normal:?}")));
         }
         let n = normal / len;
@@ -746,7 +749,7 @@ impl VirtualNodeMesh {
     }
 
     fn apply_cut(&mut self, touched: Vec<(u32, Vec<u32>)>, op: CutOp<'_>) -> Result<TopologyChange, TopologyError> {
-        let results: Vec<(u32, Option<Vec<(Arrangement, Real)>>)> = touched
+        let results: Vec<(u32, Option<Vec<Region>>)> = touched
             .par_iter()
             .map(|(d, tris)| {
                 let mut cells = self.duplicates[*d as usize].cells.clone();
@@ -782,7 +785,7 @@ impl VirtualNodeMesh {
                 pattern_changed: false,
             });
         }
-        let mut replaced: HashMap<u32, Vec<(Arrangement, Real)>> =
+        let mut replaced: HashMap<u32, Vec<Region>> =
             results.into_iter().filter_map(|(d, r)| r.map(|r| (d, r))).collect();
         let old = std::mem::take(&mut self.duplicates);
         let old_nodes: Vec<[u32; 4]> = old.iter().map(|d| d.nodes).collect();
