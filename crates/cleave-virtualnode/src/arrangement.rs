@@ -44,6 +44,9 @@ const MAX_VERTEX_PLANES: usize = 8;
 /// point is taken to coincide with a vertex.
 pub const WELD_TOLERANCE: f64 = 1e-13;
 
+/// Padding of bounding-box rejections, relative to the tetrahedron's longest edge.
+pub const BOX_PADDING: f64 = 1e-9;
+
 /// Number of splits refused (process-wide) because the rounded geometry gave no closed cap or
 /// parts that are not closed: a diagnostic the tests read; each refusal keeps a cell whole.
 pub static REFUSED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
@@ -590,12 +593,14 @@ impl Arrangement {
         let Some(tri) = self.prepare(t) else {
             return false;
         };
+        let pad = BOX_PADDING * self.scale2.sqrt();
         let mut changed = false;
         let cells = std::mem::take(&mut self.cells);
         let mut out = Vec::with_capacity(cells.len() + 4);
         for cell in cells {
             let (lo, hi) = self.cell_bounds(&cell);
-            if (0..3).any(|a| lo[a] > thi[a] || hi[a] < tlo[a]) {
+            // Padded: vertices constructed on a plane may be rounded to either side of it.
+            if (0..3).any(|a| lo[a] > thi[a] + pad || hi[a] < tlo[a] - pad) {
                 out.push(cell);
                 continue;
             }

@@ -7,6 +7,7 @@
 //! - [`mesh`]: [`VirtualNodeMesh`], carving a closed surface out of the lattice, one duplicate
 //!   per region, node copies identified across contiguous faces, the `Discretization` and
 //!   `Cuttable` implementations.
+//! - [`surface`]: the render surface (object surface and both sides of cuts), embedded.
 //! - [`tet`]: linear tetrahedron shape functions, stiffness and quadrature.
 //!
 //! ```no_run
@@ -22,6 +23,8 @@ pub mod arrangement;
 pub mod lattice;
 pub mod mesh;
 pub mod predicates;
+pub mod surface;
 pub mod tet;
 
 pub use mesh::{CutStats, Piece, VirtualNodeError, VirtualNodeMesh, box_surface};
+pub use surface::{RenderSurface, SurfaceKind};

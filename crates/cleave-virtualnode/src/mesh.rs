@@ -295,6 +295,11 @@ impl VirtualNodeMesh {
         self.duplicates.iter().map(|d| d.nodes).collect()
     }
 
+    /// The four nodes of duplicate `d` (in its lattice tetrahedron's corner order).
+    pub fn duplicate_nodes_of(&self, d: usize) -> [u32; 4] {
+        self.duplicates[d].nodes
+    }
+
     /// The convex cells of a duplicate's region.
     pub fn duplicate_cells(&self, d: usize) -> &Arrangement {
         &self.duplicates[d].cells
@@ -878,8 +883,11 @@ fn bounds(points: &[Point3<Real>]) -> (Point3<Real>, Point3<Real>) {
     (lo, hi)
 }
 
+/// Whether two boxes overlap, padded by `1e-9` of their size (constructed points on a plane may
+/// be rounded to either side of it).
 fn boxes_overlap(a: (Point3<Real>, Point3<Real>), b: (Point3<Real>, Point3<Real>)) -> bool {
-    (0..3).all(|k| a.0[k] <= b.1[k] && b.0[k] <= a.1[k])
+    let pad = 1e-9 * ((a.1 - a.0).norm() + (b.1 - b.0).norm());
+    (0..3).all(|k| a.0[k] <= b.1[k] + pad && b.0[k] <= a.1[k] + pad)
 }
 
 /// The closed, outward oriented surface of the box `[lo, hi]` (12 triangles).
