@@ -35,10 +35,16 @@ enum Command {
         /// Run this many steps instead of the scene's.
         #[arg(long)]
         steps: Option<u64>,
+        /// Run on this backend instead of the scene's default (it must have settings in the
+        /// scene; `cargo xtask backends` lists what exists).
+        #[arg(long)]
+        backend: Option<String>,
         /// No progress bar (for logs and CI).
         #[arg(long)]
         quiet: bool,
     },
+    /// List the registered backends and what they can do.
+    Backends,
     /// Refine every registered backend on the benchmark problems under a time budget; write
     /// compare.csv, compare.md and plots.
     Compare {
@@ -92,7 +98,24 @@ fn default_out(quick: bool, out: Option<PathBuf>) -> PathBuf {
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run { scene, out, steps, quiet } => run(scene, out, steps, quiet),
+        Command::Run { scene, out, steps, backend, quiet } => run(scene, out, steps, backend.as_deref(), quiet),
+        Command::Backends => {
+            println!("| backend | cut | fracture | refine | method |");
+            println!("|---|---|---|---|---|");
+            for b in cleave_registry::registered() {
+                let c = b.capabilities();
+                let yes = |v: bool| if v { "yes" } else { "—" };
+                println!(
+                    "| {} | {} | {} | {} | {} |",
+                    b.name(),
+                    yes(c.cut),
+                    yes(c.fracture),
+                    yes(c.refine),
+                    b.summary()
+                );
+            }
+            Ok(())
+        }
         Command::Compare { quick, problem, backend, budget, out, quiet } => {
             if !(budget.is_finite() && budget > 0.0) {
                 Err(anyhow::anyhow!("--budget must be a positive number of seconds, got {budget}"))
@@ -124,7 +147,13 @@ fn main() {
     }
 }
 
-fn run(scene_path: PathBuf, out: Option<PathBuf>, steps: Option<u64>, quiet: bool) -> Result<()> {
+fn run(
+    scene_path: PathBuf,
+    out: Option<PathBuf>,
+    steps: Option<u64>,
+    backend: Option<&str>,
+    quiet: bool,
+) -> Result<()> {
     let mut loaded = load_scene(&scene_path)?;
     if let Some(steps) = steps {
         loaded.scene.steps = steps;
@@ -133,7 +162,7 @@ fn run(scene_path: PathBuf, out: Option<PathBuf>, steps: Option<u64>, quiet: boo
         let stem = scene_path.file_stem().map_or_else(|| "run".into(), |s| s.to_string_lossy().into_owned());
         PathBuf::from("out").join(format!("{stem}.mcap"))
     });
-    let mut simulation = Simulation::build(&loaded, Some(&out))?;
+    let mut simulation = Simulation::build_with_backend(&loaded, Some(&out), backend)?;
     let info = simulation.info().clone();
     eprintln!(
         "{}: {} backend, {} elements (h = {:.4} m), {} DOFs, built in {:.2} s",
@@ -187,6 +216,7 @@ fn run(scene_path: PathBuf, out: Option<PathBuf>, steps: Option<u64>, quiet: boo
     bar.finish_and_clear();
     let wall = clock.elapsed().as_secs_f64();
     let done = simulation.steps_done();
+    let simulation_cuts = simulation.cut_summary().clone();
     simulation.finish(failure.as_deref())?;
 
     let per_step = |x: f64| if done > 0 { 1e3 * x / done as f64 } else { 0.0 };
@@ -211,6 +241,32 @@ fn run(scene_path: PathBuf, out: Option<PathBuf>, steps: Option<u64>, quiet: boo
         iterations as f64 / done.max(1) as f64,
         max_inverted
     );
+    let cuts = simulation_cuts;
+    if cuts.changes > 0 || !cuts.pieces.is_empty() {
+        let (volume_drift, mass_drift) = cuts.drift();
+        println!();
+        println!(
+            "| topology changes | cutting [ms] | ms/change | pieces | nodes | elements | volume drift | mass drift |"
+        );
+        println!("|---|---|---|---|---|---|---|---|");
+        println!(
+            "| {} | {:.1} | {:.2} | {} | {} | {} | {:.2e} | {:.2e} |",
+            cuts.changes,
+            1e3 * cuts.seconds,
+            1e3 * cuts.seconds / cuts.changes.max(1) as f64,
+            cuts.pieces.len(),
+            cuts.nodes,
+            cuts.elements,
+            volume_drift,
+            mass_drift
+        );
+        for (k, piece) in cuts.pieces.iter().enumerate() {
+            println!(
+                "piece {k}: {} elements, volume {:.6e} m³, mass {:.6e} kg",
+                piece.elements, piece.volume, piece.mass
+            );
+        }
+    }
     if let (Some(first), Some(last)) = (first_energy, &last_report) {
         println!("total energy {:.4e} J after step 1, {:.4e} J at the end", first, last.total_energy());
     }

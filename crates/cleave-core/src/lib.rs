@@ -20,8 +20,8 @@ pub use assembly::AssemblyPattern;
 pub use blocks::{BlockRanks, BlockRef, BlockSet, BlockSetBuilder, BlockSetError, MAX_BLOCK_NODES};
 pub use cholesky::{CholeskyError, SparseCholesky};
 pub use discretization::{
-    CoarseSpace, CutSurface, Cuttable, Discretization, DofRemap, FieldSample, Fracturable, FrameRemap, Refinable,
-    RotationStats, TopologyChange, TopologyError,
+    CoarseSpace, CutSurface, Cuttable, Discretization, DofRemap, EmbeddedSurface, FieldSample, Fracturable, FrameRemap,
+    Piece, Refinable, RotationStats, TopologyChange, TopologyError,
 };
 pub use embedding::{EmbedError, Embedding};
 pub use mass::Mass;

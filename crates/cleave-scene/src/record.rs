@@ -162,12 +162,52 @@ impl Recorder {
             .map_err(|e| RecordError { path: self.path.clone(), message: e.to_string() })
     }
 
-    /// Records the deformed surface as one entity with one triangle list.
-    pub fn surface(&mut self, time: Real, points: &[Point3<Real>], triangles: &[[u32; 3]]) -> Result<(), RecordError> {
+    /// Records the deformed surface as one entity with two triangle lists: the original surface
+    /// (tan) and the faces cuts opened (`on_cut[t]`, red), each with only the points it uses.
+    /// An empty `on_cut` means no triangle lies on a cut.
+    pub fn surface(
+        &mut self,
+        time: Real,
+        points: &[Point3<Real>],
+        triangles: &[[u32; 3]],
+        on_cut: &[bool],
+    ) -> Result<(), RecordError> {
         let ns = nanoseconds(time);
         let stamp = json!({ "sec": ns / 1_000_000_000, "nsec": ns % 1_000_000_000 });
-        let points: Vec<Value> = points.iter().map(|p| json!({ "x": p.x, "y": p.y, "z": p.z })).collect();
-        let indices: Vec<u32> = triangles.iter().flatten().copied().collect();
+        let list = |cut: bool, color: Value| -> Option<Value> {
+            let mut local = vec![u32::MAX; points.len()];
+            let mut used: Vec<Value> = Vec::new();
+            let mut indices: Vec<u32> = Vec::new();
+            for (t, triangle) in triangles.iter().enumerate() {
+                if on_cut.get(t).copied().unwrap_or(false) != cut {
+                    continue;
+                }
+                for &v in triangle {
+                    if local[v as usize] == u32::MAX {
+                        local[v as usize] = used.len() as u32;
+                        let p = points[v as usize];
+                        used.push(json!({ "x": p.x, "y": p.y, "z": p.z }));
+                    }
+                    indices.push(local[v as usize]);
+                }
+            }
+            (!indices.is_empty()).then(|| {
+                json!({
+                    "pose": { "position": { "x": 0.0, "y": 0.0, "z": 0.0 }, "orientation": { "x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0 } },
+                    "points": used,
+                    "color": color,
+                    "colors": [],
+                    "indices": indices,
+                })
+            })
+        };
+        let lists: Vec<Value> = [
+            list(false, json!({ "r": 0.85, "g": 0.62, "b": 0.38, "a": 1.0 })),
+            list(true, json!({ "r": 0.80, "g": 0.15, "b": 0.15, "a": 1.0 })),
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
         let message = json!({
             "deletions": [],
             "entities": [{
@@ -178,13 +218,7 @@ impl Recorder {
                 "frame_locked": false,
                 "metadata": [],
                 "arrows": [], "cubes": [], "spheres": [], "cylinders": [], "lines": [], "texts": [], "models": [],
-                "triangles": [{
-                    "pose": { "position": { "x": 0.0, "y": 0.0, "z": 0.0 }, "orientation": { "x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0 } },
-                    "points": points,
-                    "color": { "r": 0.85, "g": 0.62, "b": 0.38, "a": 1.0 },
-                    "colors": [],
-                    "indices": indices,
-                }],
+                "triangles": lists,
             }],
         });
         self.write(self.surface, time, &message)

@@ -1,15 +1,12 @@
 //! Loading a scene file, building what it names, stepping it and recording every step.
 
 use crate::record::{RecordError, Recorder};
-use crate::schema::{
-    ColliderSpec, DiscretizationSpec, EventSpec, FluxSpec, Object, PinSpec, Scene, SolverSpec, Transform,
-};
-use cleave_core::{Discretization, Embedding, Point3, Real, Vector3};
-use cleave_dg::{DgMesh, DgOptions, Flux, WeakDirichlet};
-use cleave_geometry::{PolyhedralMesh, TriangleMesh};
+use crate::schema::{ColliderSpec, CutSpec, EventSpec, Object, PinSpec, Scene, SolverSpec, Transform};
+use cleave_core::{CutSurface, Discretization, Embedding, Piece, Point3, Real, Vector3};
+use cleave_geometry::{Blade, Keyframe, TriangleMesh};
 use cleave_integrator::{Constraints, Integrator, PlaneCollider, Settings, Solver, StepError, StepReport};
-use cleave_voxel::VoxelMesh;
-use nalgebra::Rotation3;
+use cleave_registry::{Backend, BackendError, Region, Shape, SolidRequest};
+use nalgebra::{Rotation3, UnitQuaternion};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -75,6 +72,8 @@ pub struct LoadedScene {
     pub path: PathBuf,
     /// Its content.
     pub scene: Scene,
+    /// Its text (to place errors found later, e.g. in a backend's settings).
+    pub text: String,
 }
 
 /// Reads and parses a scene; errors carry file, line and column.
@@ -88,7 +87,7 @@ pub fn parse_scene(path: &Path, text: &str) -> Result<LoadedScene, SceneError> {
     // `implicit_some` lets scenes write `cell_size: 0.25` for optional fields.
     let options = ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
     match options.from_str::<Scene>(text) {
-        Ok(scene) => Ok(LoadedScene { path: path.to_path_buf(), scene }),
+        Ok(scene) => Ok(LoadedScene { path: path.to_path_buf(), scene, text: text.to_string() }),
         Err(error) => Err(SceneError::Parse {
             path: path.to_path_buf(),
             line: error.span.start.line,
@@ -131,6 +130,46 @@ pub struct Simulation {
     recorder: Option<Recorder>,
     points: Vec<Point3<Real>>,
     info: BuildInfo,
+    registration: Box<dyn Backend>,
+    pins: Vec<Region>,
+    planes: Vec<PlaneCollider>,
+    probe_points: Vec<Point3<Real>>,
+    surface_on_cut: Vec<bool>,
+    timeline: Vec<TimedCut>,
+    cuts: CutSummary,
+}
+
+/// A timeline event ready to act: a fixed soup at a time, or a blade over a window.
+enum TimedCut {
+    Once { time: Real, soup: Vec<[Point3<Real>; 3]>, done: bool },
+    Blade { start: Real, end: Real, blade: Blade },
+}
+
+/// What cutting did over a run (for the summary table and the recording).
+#[derive(Clone, Debug, Default)]
+pub struct CutSummary {
+    /// Topology changes applied.
+    pub changes: usize,
+    /// Wall-clock seconds in cutting and rebuilding after cuts.
+    pub seconds: Real,
+    /// Total volume and mass at the start [m³, kg] (from the pieces of a cuttable backend).
+    pub initial: (Real, Real),
+    /// The pieces now.
+    pub pieces: Vec<Piece>,
+    /// Nodes and elements now.
+    pub nodes: usize,
+    /// Elements now (frames).
+    pub elements: usize,
+}
+
+impl CutSummary {
+    /// Relative drift of total volume and mass since the start.
+    pub fn drift(&self) -> (Real, Real) {
+        let volume: Real = self.pieces.iter().map(|p| p.volume).sum();
+        let mass: Real = self.pieces.iter().map(|p| p.mass).sum();
+        let relative = |now: Real, start: Real| if start > 0.0 { (now - start) / start } else { 0.0 };
+        (relative(volume, self.initial.0), relative(mass, self.initial.1))
+    }
 }
 
 fn transform_point(t: &Transform, p: &Point3<Real>) -> Point3<Real> {
@@ -141,61 +180,19 @@ fn transform_point(t: &Transform, p: &Point3<Real>) -> Point3<Real> {
     rotation * (p * t.scale) + Vector3::from(t.translation)
 }
 
-/// Cubes per axis of a box of cell size `h`, or why it is not a whole number of cells.
-fn box_dims(min: &[Real; 3], max: &[Real; 3], h: Real) -> Result<[usize; 3], String> {
-    let dims: Vec<usize> = (0..3).map(|a| ((max[a] - min[a]) / h).round().max(0.0) as usize).collect();
-    if dims.contains(&0) || (0..3).any(|a| ((max[a] - min[a]) - dims[a] as Real * h).abs() > 1e-9 * h.max(1.0)) {
-        return Err(format!("the box {min:?}..{max:?} is not a whole number of cells of size {h}"));
-    }
-    Ok([dims[0], dims[1], dims[2]])
-}
-
-/// The boundary faces of a polyhedral mesh as fan triangles over its vertices, outward.
-fn polyhedral_boundary(mesh: &PolyhedralMesh) -> Vec<[u32; 3]> {
-    let mut triangles = Vec::new();
-    for face in mesh.faces.iter().filter(|f| f.outer.is_none()) {
-        for k in 1..face.polygon.len().saturating_sub(1) {
-            triangles.push([face.polygon[0], face.polygon[k], face.polygon[k + 1]]);
-        }
-    }
-    triangles
-}
-
-/// The boundary faces of a voxel mesh as triangles over its nodes, outward oriented.
-fn voxel_boundary(mesh: &VoxelMesh) -> Vec<[u32; 3]> {
-    // For each axis and side: the four corners of that face (bit `axis` fixed), in cyclic order.
-    let mut triangles = Vec::new();
-    for (cube, cell) in mesh.cells().iter().enumerate() {
-        for axis in 0..3 {
-            for side in [0, 1] {
-                let mut neighbour = *cell;
-                neighbour[axis] += if side == 1 { 1 } else { -1 };
-                if mesh.cube_at(neighbour).is_some() {
-                    continue;
-                }
-                let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-                let corner = |a: usize, b: usize| (side << axis) | (a << u) | (b << v);
-                let quad = [corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)];
-                let nodes = quad.map(|c| mesh.cube_nodes()[cube][c]);
-                // (u, v, axis) is right-handed, so the cyclic order above faces +axis; flip it on
-                // the minus side.
-                if side == 1 {
-                    triangles.push([nodes[0], nodes[1], nodes[2]]);
-                    triangles.push([nodes[0], nodes[2], nodes[3]]);
-                } else {
-                    triangles.push([nodes[0], nodes[2], nodes[1]]);
-                    triangles.push([nodes[0], nodes[3], nodes[2]]);
-                }
-            }
-        }
-    }
-    triangles
-}
-
 impl Simulation {
     /// Builds the discretization, constraints and integrator a scene names and opens the
     /// recording (`output` overrides the scene's `output.mcap`; no path means no recording).
     pub fn build(loaded: &LoadedScene, output: Option<&Path>) -> Result<Self, SceneError> {
+        Self::build_with_backend(loaded, output, None)
+    }
+
+    /// [`Simulation::build`] with the backend overridden (`None`: the scene's `backend`).
+    pub fn build_with_backend(
+        loaded: &LoadedScene,
+        output: Option<&Path>,
+        backend: Option<&str>,
+    ) -> Result<Self, SceneError> {
         let clock = Instant::now();
         let scene = &loaded.scene;
         let path = loaded.path.clone();
@@ -221,139 +218,66 @@ impl Simulation {
             }
             Object::Box { min, max } => Err((*min, *max)),
         };
-        let pin_regions: Vec<([Real; 3], [Real; 3])> = scene
+        let pins: Vec<Region> = scene
             .pins
             .iter()
             .map(|pin| {
                 let PinSpec::Region { min, max } = pin;
-                (*min, *max)
+                Region { min: *min, max: *max }
             })
             .collect();
-        let in_region = |p: &[Real], (min, max): &([Real; 3], [Real; 3])| {
-            (0..3).all(|a| p[a] >= min[a] - 1e-9 && p[a] <= max[a] + 1e-9)
-        };
         let mut constraints = Constraints::default();
 
-        let (discretization, element_count, element_size, surface_vertices, surface_triangles): (
-            Box<dyn Discretization>,
-            usize,
-            Real,
-            _,
-            _,
-        ) = match &scene.discretization {
-            DiscretizationSpec::Voxel { cell_size, target_cubes } => {
-                let (voxels, vertices, triangles) = match surface {
-                    Ok((mesh, resolved)) => {
-                        let mesh_error =
-                            |message: String| SceneError::Mesh { scene: path.clone(), mesh: resolved.clone(), message };
-                        let h = match (cell_size, target_cubes) {
-                            (Some(h), None) => h.0,
-                            (None, Some(target)) if *target > 0 => cell_size_for(&mesh, *target).map_err(mesh_error)?,
-                            _ => {
-                                return Err(build_error(
-                                    "Voxel needs exactly one of `cell_size` and `target_cubes` (> 0)".into(),
-                                ));
-                            }
-                        };
-                        let grid = cleave_geometry::voxelize(&mesh, h).map_err(|e| mesh_error(e.to_string()))?;
-                        let voxels = VoxelMesh::new(material, grid.origin, grid.cell_size, &grid.cells)
-                            .map_err(|e| build_error(e.to_string()))?;
-                        (voxels, mesh.vertices, mesh.triangles)
-                    }
-                    Err((min, max)) => {
-                        let h =
-                            cell_size.ok_or_else(|| build_error("a Box object needs Voxel(cell_size: ...)".into()))?.0;
-                        let dims = box_dims(&min, &max, h).map_err(&build_error)?;
-                        let voxels = VoxelMesh::from_box(material, Point3::from(min), h, dims)
-                            .map_err(|e| build_error(e.to_string()))?;
-                        let triangles = voxel_boundary(&voxels);
-                        let vertices: Vec<Point3<Real>> =
-                            voxels.rest_dofs().chunks(3).map(|p| Point3::new(p[0], p[1], p[2])).collect();
-                        (voxels, vertices, triangles)
-                    }
-                };
-                for (index, region) in pin_regions.iter().enumerate() {
-                    let before = constraints.pinned_dofs.len();
-                    for (node, p) in voxels.rest_dofs().chunks(3).enumerate() {
-                        if in_region(p, region) {
-                            constraints.pinned_dofs.extend(3 * node..3 * node + 3);
-                        }
-                    }
-                    if constraints.pinned_dofs.len() == before {
-                        return Err(build_error(format!(
-                            "pins[{index}]: the region {:?}..{:?} contains no node",
-                            region.0, region.1
-                        )));
-                    }
-                }
-                let (count, h) = (voxels.num_cubes(), voxels.cell_size());
-                (Box::new(voxels), count, h, vertices, triangles)
+        // The backend: the scene's default or the override, through its one registration.
+        let name = backend.unwrap_or(&scene.backend);
+        let registration = cleave_registry::find(name).ok_or_else(|| {
+            build_error(format!("no backend {name:?}; registered: {}", cleave_registry::names().join(", ")))
+        })?;
+        let settings = scene.settings.get(name).ok_or_else(|| {
+            let given: Vec<&str> = scene.settings.keys().map(String::as_str).collect();
+            build_error(format!(
+                "`settings` has no entry for backend {name:?} (it has: {}); add e.g. \"{name}\": (cell_size: ...)",
+                given.join(", ")
+            ))
+        })?;
+        // Capabilities the timeline needs, before anything is built.
+        let capabilities = registration.capabilities();
+        for (index, event) in scene.timeline.iter().enumerate() {
+            let kind = match event {
+                EventSpec::Cut { .. } => "Cut",
+                EventSpec::Blade { .. } => "Blade",
+            };
+            if !capabilities.cut {
+                return Err(build_error(format!(
+                    "timeline[{index}] ({kind} at t = {} s) cuts, but the {name} backend cannot cut",
+                    event.start()
+                )));
             }
-            DiscretizationSpec::Dg { cell_size, target_elements, degree, flux, penalty, penalty_margin } => {
-                let (poly, h, vertices, triangles) = match surface {
-                    Ok((mesh, resolved)) => {
-                        let mesh_error =
-                            |message: String| SceneError::Mesh { scene: path.clone(), mesh: resolved.clone(), message };
-                        let h = match (cell_size, target_elements) {
-                            (Some(h), None) => h.0,
-                            (None, Some(target)) if *target > 0 => {
-                                slicing_cell_size_for(&mesh, *target).map_err(mesh_error)?
-                            }
-                            _ => {
-                                return Err(build_error(
-                                    "Dg needs exactly one of `cell_size` and `target_elements` (> 0)".into(),
-                                ));
-                            }
-                        };
-                        let slicing = cleave_geometry::hex_slice(&mesh, h).map_err(|e| mesh_error(e.to_string()))?;
-                        (slicing.mesh, h, mesh.vertices, mesh.triangles)
-                    }
-                    Err((min, max)) => {
-                        let h = cell_size.ok_or_else(|| build_error("a Box object needs Dg(cell_size: ...)".into()))?.0;
-                        let dims = box_dims(&min, &max, h).map_err(&build_error)?;
-                        let grid = PolyhedralMesh::grid(Point3::from(min), h, dims);
-                        let triangles = polyhedral_boundary(&grid);
-                        (grid.clone(), h, grid.vertices, triangles)
-                    }
-                };
-                let flux = match flux {
-                    FluxSpec::InteriorPenalty => Flux::InteriorPenalty,
-                    FluxSpec::BabuskaZlamal => Flux::BabuskaZlamal,
-                };
-                let mut options = DgOptions::new(*degree, flux);
-                if let Some(margin) = penalty_margin {
-                    options.penalty_margin = margin.0;
-                }
-                if let Some(eta) = penalty {
-                    options.penalty = eta.0;
-                }
-                // Pins clamp the boundary faces whose centroid lies in a pin region (weak
-                // Dirichlet data u = 0: DG has no nodal values to hold).
-                for (index, region) in pin_regions.iter().enumerate() {
-                    let clamps_a_face = poly.faces.iter().enumerate().any(|(f, face)| {
-                        face.outer.is_none()
-                            && in_region(
-                                cleave_geometry::face_area_normal_centroid(&poly, f).2.coords.as_slice(),
-                                region,
-                            )
-                    });
-                    if !clamps_a_face {
-                        return Err(build_error(format!(
-                            "pins[{index}]: the region {:?}..{:?} contains no boundary face centroid",
-                            region.0, region.1
-                        )));
-                    }
-                }
-                let on_boundary =
-                    |p: &Point3<Real>| pin_regions.iter().any(|region| in_region(p.coords.as_slice(), region));
-                let zero = |_: &Point3<Real>| Vector3::zeros();
-                let dirichlet = WeakDirichlet { on_boundary: &on_boundary, data: &zero };
-                let dg = DgMesh::new(poly, material, options, (!pin_regions.is_empty()).then_some(&dirichlet))
-                    .map_err(|e| build_error(format!("discretization: {e}")))?;
-                let count = dg.num_elements();
-                (Box::new(dg), count, h, vertices, triangles)
-            }
+        }
+        let shape = match &surface {
+            Ok((mesh, _)) => Shape::Surface(mesh),
+            Err((min, max)) => Shape::Box { min: *min, max: *max },
         };
+        let request = SolidRequest { shape, material, pins: &pins };
+        let built = registration.build_solid(settings.get_ron(), &request).map_err(|error| match error {
+            BackendError::Settings { line, column, message } => {
+                let (line, column) = position_within(&loaded.text, settings.get_ron(), line, column);
+                SceneError::Parse { path: path.clone(), line, column, message: format!("settings.{name}: {message}") }
+            }
+            BackendError::Build(message) => match &surface {
+                Ok((_, resolved)) if message.contains("mesh") || message.contains("volume") => {
+                    SceneError::Mesh { scene: path.clone(), mesh: resolved.clone(), message }
+                }
+                _ => build_error(message),
+            },
+        })?;
+        constraints.pinned_dofs = built.pins.pinned_dofs;
+        constraints.extra_load = built.pins.extra_load;
+        let mut discretization = built.discretization;
+        let (element_count, element_size) = (built.elements, built.element_size);
+        let (surface_vertices, mut surface_triangles) = (built.surface.vertices, built.surface.triangles);
+        let mut surface_on_cut = vec![false; surface_triangles.len()];
+        let cut_surface = discretization.as_cuttable().and_then(|c| c.surface());
         let info = BuildInfo {
             backend: discretization.name().to_string(),
             elements: element_count,
@@ -363,25 +287,18 @@ impl Simulation {
             element_size,
             seconds: 0.0,
         };
-        let mut discretization = discretization;
 
-        // Capabilities the timeline needs.
-        for (index, event) in scene.timeline.iter().enumerate() {
-            match event {
-                EventSpec::Cut { .. } => {
-                    if discretization.as_cuttable().is_none() {
-                        return Err(build_error(format!(
-                            "timeline[{index}] cuts, but the {} backend cannot be cut",
-                            discretization.name()
-                        )));
-                    }
-                }
+        // A cuttable backend renders its own surface (it changes with every cut).
+        let surface_points = match cut_surface {
+            Some(own) => {
+                surface_triangles = own.triangles;
+                surface_on_cut = own.on_cut;
+                own.embedding
             }
-        }
-
-        let surface_points = discretization
-            .embed_surface(&surface_vertices)
-            .map_err(|e| build_error(format!("surface vertex cannot be embedded: {e}")))?;
+            None => discretization
+                .embed_surface(&surface_vertices)
+                .map_err(|e| build_error(format!("surface vertex cannot be embedded: {e}")))?,
+        };
         let probe_points: Vec<Point3<Real>> = scene.probes.iter().map(|p| Point3::from(p.position)).collect();
         let probes = discretization.embed(&probe_points).map_err(|e| build_error(format!("probe: {e}")))?;
 
@@ -397,6 +314,17 @@ impl Simulation {
         if !constraints.planes.is_empty() {
             constraints.contact_points = Some(surface_points.clone());
         }
+
+        let timeline = prepare_timeline(&scene.timeline, &path)?;
+        let planes = constraints.planes.clone();
+        let pieces = discretization.as_cuttable().map(|c| c.pieces()).unwrap_or_default();
+        let cuts = CutSummary {
+            initial: (pieces.iter().map(|p| p.volume).sum(), pieces.iter().map(|p| p.mass).sum()),
+            nodes: discretization.num_nodes(),
+            elements: discretization.num_frames(),
+            pieces,
+            ..Default::default()
+        };
 
         let mut settings = Settings::new(scene.time_step.0);
         settings.gravity = Vector3::from(scene.gravity);
@@ -429,6 +357,13 @@ impl Simulation {
             recorder,
             points: Vec::new(),
             info: BuildInfo { seconds: clock.elapsed().as_secs_f64(), ..info },
+            registration,
+            pins,
+            planes,
+            probe_points,
+            surface_on_cut,
+            timeline,
+            cuts,
         };
         if let Some(recorder) = simulation.recorder.as_mut() {
             let i = &simulation.info;
@@ -477,7 +412,7 @@ impl Simulation {
         self.surface_points.evaluate(self.integrator.positions(), &mut self.points);
         let time = self.integrator.time();
         if let Some(recorder) = self.recorder.as_mut() {
-            recorder.surface(time, &self.points, &self.surface_triangles)?;
+            recorder.surface(time, &self.points, &self.surface_triangles, &self.surface_on_cut)?;
         }
         Ok(())
     }
@@ -523,8 +458,102 @@ impl Simulation {
         Ok(())
     }
 
-    /// Takes one step and records it.
+    /// What cutting has done so far.
+    pub fn cut_summary(&self) -> &CutSummary {
+        &self.cuts
+    }
+
+    /// The triangles every timeline event cuts at the start of the step from `t0` to `t1`: a
+    /// `Cut` once, at the first step that starts at or after its time; a blade, what it swept
+    /// over the part of its window inside this step.
+    fn due_cuts(&mut self, t0: Real, t1: Real) -> Vec<[Point3<Real>; 3]> {
+        let mut soup = Vec::new();
+        for event in &mut self.timeline {
+            match event {
+                TimedCut::Once { time, soup: triangles, done } => {
+                    if !*done && *time <= t0 + 1e-9 {
+                        soup.append(triangles);
+                        *done = true;
+                    }
+                }
+                TimedCut::Blade { start, end, blade } => {
+                    let (a, b) = (t0.max(*start), t1.min(*end));
+                    if a < b || (a == b && a == *start) {
+                        soup.extend(blade.swept(a, b));
+                    }
+                }
+            }
+        }
+        soup
+    }
+
+    /// Applies a cut between steps: the backend cuts, the integrator carries the state across,
+    /// pins, contact rows, probes and the render surface are resolved again, and the change is
+    /// recorded as a `cut` event.
+    fn apply_cut(&mut self, soup: Vec<[Point3<Real>; 3]>) -> Result<(), SceneError> {
+        let clock = Instant::now();
+        let build_error = |message: String| SceneError::Build { path: self.path.clone(), message };
+        let before = (self.discretization.num_nodes(), self.discretization.num_frames(), self.cuts.pieces.len());
+        let epoch = self.discretization.epoch();
+        let cuttable = self
+            .discretization
+            .as_cuttable()
+            .ok_or_else(|| build_error(format!("the {} backend cannot cut", self.info.backend)))?;
+        let change = cuttable
+            .cut(&CutSurface::Triangles(soup))
+            .map_err(|e| build_error(format!("cut at t = {} s: {e}", self.integrator.time())))?;
+        if change.epoch == epoch {
+            return Ok(());
+        }
+        let surface = cuttable.surface().ok_or_else(|| build_error("a cut body must render its own surface".into()))?;
+        let pieces = cuttable.pieces();
+        let d = self.discretization.as_ref();
+        let pins = self.registration.resolve_pins(d, &self.pins).map_err(|e| build_error(e.to_string()))?;
+        let constraints = Constraints {
+            pinned_dofs: pins.pinned_dofs,
+            extra_load: pins.extra_load,
+            contact_points: (!self.planes.is_empty()).then(|| surface.embedding.clone()),
+            planes: self.planes.clone(),
+            ..Default::default()
+        };
+        self.integrator
+            .apply_topology_change(d, &change, constraints)
+            .map_err(|source| SceneError::Step { path: self.path.clone(), source })?;
+        self.probes = d.embed(&self.probe_points).map_err(|e| build_error(format!("probe after a cut: {e}")))?;
+        self.surface_triangles = surface.triangles;
+        self.surface_on_cut = surface.on_cut;
+        self.surface_points = surface.embedding;
+        let seconds = clock.elapsed().as_secs_f64();
+        self.cuts.changes += 1;
+        self.cuts.seconds += seconds;
+        self.cuts.pieces = pieces;
+        self.cuts.nodes = d.num_nodes();
+        self.cuts.elements = d.num_frames();
+        self.info.dofs = 3 * d.num_nodes();
+        let time = self.integrator.time();
+        if let Some(recorder) = self.recorder.as_mut() {
+            let message = format!(
+                "nodes {} -> {}, elements {} -> {}, pieces {} -> {}, {:.2} ms",
+                before.0,
+                self.cuts.nodes,
+                before.1,
+                self.cuts.elements,
+                before.2,
+                self.cuts.pieces.len(),
+                1e3 * seconds
+            );
+            recorder.event(time, "cut", &message)?;
+        }
+        Ok(())
+    }
+
+    /// Takes one step (applying the cuts due before it) and records it.
     pub fn step(&mut self) -> Result<StepReport, SceneError> {
+        let t0 = self.integrator.time();
+        let soup = self.due_cuts(t0, t0 + self.integrator.settings().time_step);
+        if !soup.is_empty() {
+            self.apply_cut(soup)?;
+        }
         let report = self
             .integrator
             .step(self.discretization.as_ref())
@@ -551,40 +580,73 @@ impl Simulation {
     }
 }
 
-/// A cube edge giving about `target` cubes: start from volume/target, correct by the measured
-/// count (the surface layer makes the first guess too many cubes).
-fn cell_size_for(mesh: &TriangleMesh, target: usize) -> Result<Real, String> {
-    let volume = mesh.signed_volume();
-    if volume.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-        return Err(format!("enclosed volume is {volume}, cannot size cubes"));
+/// Turns the scene's events into cuts ready to act: OBJ soups read and placed, blades checked.
+fn prepare_timeline(events: &[EventSpec], scene: &Path) -> Result<Vec<TimedCut>, SceneError> {
+    let build_error = |message: String| SceneError::Build { path: scene.to_path_buf(), message };
+    let mut timeline = Vec::with_capacity(events.len());
+    for (index, event) in events.iter().enumerate() {
+        timeline.push(match event {
+            EventSpec::Cut { time, surface } => {
+                let soup = match surface {
+                    CutSpec::Plane { point, normal } => plane_soup(Point3::from(*point), Vector3::from(normal.0)),
+                    CutSpec::Obj { path: obj, transform } => {
+                        let resolved = scene.parent().unwrap_or(Path::new(".")).join(obj);
+                        let mesh_error = |message: String| SceneError::Mesh {
+                            scene: scene.to_path_buf(),
+                            mesh: resolved.clone(),
+                            message: format!("timeline[{index}]: {message}"),
+                        };
+                        let file =
+                            std::fs::File::open(&resolved).map_err(|e| mesh_error(format!("cannot open: {e}")))?;
+                        let mesh = TriangleMesh::from_obj_reader(&mut std::io::BufReader::new(file))
+                            .map_err(|e| mesh_error(e.to_string()))?;
+                        let mesh = mesh.transformed(|p| transform_point(transform, p));
+                        (0..mesh.triangles.len()).filter_map(|t| mesh.triangle_points(t)).collect()
+                    }
+                };
+                TimedCut::Once { time: *time, soup, done: false }
+            }
+            EventSpec::Blade { start, end, polygon, path } => {
+                if !(start.is_finite() && end.is_finite() && start <= end) {
+                    return Err(build_error(format!("timeline[{index}]: blade window {start}..{end} is empty")));
+                }
+                let keyframes = path
+                    .iter()
+                    .map(|k| {
+                        let [rx, ry, rz] = k.rotation_degrees.map(Real::to_radians);
+                        Keyframe {
+                            time: k.time,
+                            translation: Vector3::from(k.translation),
+                            rotation: UnitQuaternion::from_euler_angles(rx, ry, rz),
+                        }
+                    })
+                    .collect();
+                let polygon = polygon.iter().map(|p| Point3::from(*p)).collect();
+                let blade =
+                    Blade::new(polygon, keyframes).map_err(|e| build_error(format!("timeline[{index}]: {e}")))?;
+                TimedCut::Blade { start: *start, end: *end, blade }
+            }
+        });
     }
-    let mut h = (volume / target as Real).cbrt();
-    for _ in 0..4 {
-        let count = cleave_geometry::voxelize(mesh, h).map_err(|e| e.to_string())?.cells.len();
-        let ratio = count as Real / target as Real;
-        if (ratio - 1.0).abs() < 0.05 {
-            break;
-        }
-        h *= ratio.cbrt();
-    }
-    Ok(h)
+    Ok(timeline)
 }
 
-/// The slicing cell edge giving about `target` DG elements (a few slicings, refining `h` by the
-/// cube root of the count ratio).
-fn slicing_cell_size_for(mesh: &TriangleMesh, target: usize) -> Result<Real, String> {
-    let volume = mesh.signed_volume();
-    if volume.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-        return Err(format!("enclosed volume is {volume}, cannot size elements"));
-    }
-    let mut h = (volume / target as Real).cbrt();
-    for _ in 0..4 {
-        let count = cleave_geometry::hex_slice(mesh, h).map_err(|e| e.to_string())?.mesh.num_elements;
-        let ratio = count as Real / target as Real;
-        if (ratio - 1.0).abs() < 0.1 {
-            break;
-        }
-        h *= ratio.cbrt();
-    }
-    Ok(h)
+/// A plane as two triangles far larger than any scene (1e4 m), centred on `point`.
+fn plane_soup(point: Point3<Real>, normal: Vector3<Real>) -> Vec<[Point3<Real>; 3]> {
+    let n = normal.normalize();
+    let helper = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    let u = n.cross(&helper).normalize() * 1e4;
+    let v = n.cross(&u);
+    let corners = [point - u - v, point + u - v, point + u + v, point - u + v];
+    vec![[corners[0], corners[1], corners[2]], [corners[0], corners[2], corners[3]]]
+}
+
+/// Line and column in the scene file of a position (1-based) inside `inner`, a slice of the
+/// file's text (a backend's settings); falls back to the position within `inner`.
+fn position_within(text: &str, inner: &str, line: usize, column: usize) -> (usize, usize) {
+    let Some(offset) = text.find(inner) else { return (line, column) };
+    let before = &text[..offset];
+    let start_line = before.matches('\n').count() + 1;
+    let start_column = offset - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+    if line <= 1 { (start_line, start_column + column - 1) } else { (start_line + line - 1, column) }
 }

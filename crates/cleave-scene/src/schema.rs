@@ -3,7 +3,9 @@
 //! checked while parsing, so their errors carry the file's line and column.
 
 use cleave_core::{Material, Real};
+use ron::value::RawValue;
 use serde::Deserialize;
+use std::collections::BTreeMap;
 
 /// A whole scene.
 #[derive(Clone, Debug, Deserialize)]
@@ -15,8 +17,13 @@ pub struct Scene {
     pub object: Object,
     /// Its material.
     pub material: ValidMaterial,
-    /// How it is discretized.
-    pub discretization: DiscretizationSpec,
+    /// The backend that runs by default (a name of `cleave_registry::names()`); `cargo xtask run
+    /// --backend NAME` overrides it.
+    pub backend: String,
+    /// Per-backend settings keyed by backend name, `{ "voxel": (cell_size: 0.25), ... }`; each
+    /// entry is read by its backend's registration (`docs/scene-format.md`). One scene carries
+    /// the settings of every backend it runs on.
+    pub settings: BTreeMap<String, Box<RawValue>>,
     /// Time step `h` [s].
     pub time_step: Positive,
     /// Number of steps to run.
@@ -142,58 +149,6 @@ impl Default for Transform {
     }
 }
 
-/// Discretization and its parameters.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub enum DiscretizationSpec {
-    /// Voxel cube FEM (mueller2004).
-    Voxel {
-        /// Cube edge [m]; exactly one of `cell_size` and `target_cubes`.
-        #[serde(default)]
-        cell_size: Option<Positive>,
-        /// Pick the cube edge that gives about this many cubes.
-        #[serde(default)]
-        target_cubes: Option<usize>,
-    },
-    /// Discontinuous Galerkin FEM on polyhedra (kaufmann2008): a mesh is cut into elements by
-    /// hexahedral slicing, a box into a grid of cubes.
-    Dg {
-        /// Slicing grid cell edge [m]; exactly one of `cell_size` and `target_elements` for meshes.
-        #[serde(default)]
-        cell_size: Option<Positive>,
-        /// Pick the cell edge that gives about this many elements.
-        #[serde(default)]
-        target_elements: Option<usize>,
-        /// Polynomial degree, 1 or 2 (default 1).
-        #[serde(default = "one_usize")]
-        degree: usize,
-        /// Interior-face flux (default `InteriorPenalty`).
-        #[serde(default)]
-        flux: FluxSpec,
-        /// Starting penalty η (default: 1 for IP, 10 for BZ); doubled until positive definite.
-        #[serde(default)]
-        penalty: Option<Positive>,
-        /// Factor ≥ 1 on the first positive definite η (default 1, the paper's rule); head room
-        /// for corotated dynamics of nearly incompressible IP models (docs/math/dg.md §9).
-        #[serde(default)]
-        penalty_margin: Option<Positive>,
-    },
-}
-
-fn one_usize() -> usize {
-    1
-}
-
-/// The DG interior-face flux.
-#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
-pub enum FluxSpec {
-    /// Symmetric interior penalty (consistent).
-    #[default]
-    InteriorPenalty,
-    /// Babuška–Zlámal, penalty only (not consistent).
-    BabuskaZlamal,
-}
-
 /// Linear solver.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -277,15 +232,70 @@ pub struct ProbeSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub enum EventSpec {
-    /// Cut along a plane at `time`.
+    /// Cut the material along a surface (in rest space) at `time`.
     Cut {
         /// when [s]
         time: Real,
+        /// the cut surface
+        surface: CutSpec,
+    },
+    /// A blade: a planar polygon moved along a keyframed rigid path, cutting what it passes
+    /// through progressively between `start` and `end`.
+    Blade {
+        /// first time it cuts [s]
+        start: Real,
+        /// last time it cuts [s]
+        end: Real,
+        /// the blade's face in its own frame (≥ 3 points, planar)
+        polygon: Vec<[Real; 3]>,
+        /// poses of its frame, times strictly increasing
+        path: Vec<KeyframeSpec>,
+    },
+}
+
+impl EventSpec {
+    /// The time the event first acts.
+    pub fn start(&self) -> Real {
+        match self {
+            EventSpec::Cut { time, .. } => *time,
+            EventSpec::Blade { start, .. } => *start,
+        }
+    }
+}
+
+/// A cut surface of a `Cut` event, in rest space.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum CutSpec {
+    /// The whole plane through `point` with normal `normal`.
+    Plane {
         /// a point on the plane
         point: [Real; 3],
         /// its normal
         normal: Direction,
     },
+    /// A triangle soup from an OBJ file (relative to the scene file), placed by `transform`.
+    Obj {
+        /// path of the OBJ
+        path: String,
+        /// placement
+        #[serde(default)]
+        transform: Transform,
+    },
+}
+
+/// One pose of a blade.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KeyframeSpec {
+    /// time [s]
+    pub time: Real,
+    /// translation of the blade's frame [m]
+    #[serde(default)]
+    pub translation: [Real; 3],
+    /// rotation of the blade's frame, degrees about x, then y, then z
+    #[serde(default)]
+    pub rotation_degrees: [Real; 3],
 }
 
 /// Recording options.
