@@ -94,8 +94,8 @@ pub fn stability(args: StabilityArgs) -> Result<()> {
          |E(0)|, kinetic + elastic and the gravitational work over the run (a start from rest has E(0) = 0, so \
          a bare ratio to E(0) would be meaningless). A failure names its mode and step; *×N* is \
          1 + max(E − E(0))/scale. Extreme cases run at E = 1e6 Pa, ν = 0.3, h = 1/60 s. Every backend runs \
-         with its defaults (for DG the paper's penalty rule); why IP grows at ν = 0.4999 and which \
-         `penalty_margin` removes it is measured in `docs/math/dg.md` §9. Raw cells: \
+         with its defaults (for DG the paper's penalty rule); what the ν = 0.4999 row measured before \
+         and after the corotated Dirichlet fix is in `docs/math/dg.md` §9. Raw cells: \
          [`stability.csv`](stability.csv).\n",
         beam.max_corner().x,
         beam.max_corner().y,
