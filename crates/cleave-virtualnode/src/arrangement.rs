@@ -333,16 +333,32 @@ impl Arrangement {
     /// that is not one closed loop, or parts that are not closed polyhedra, the cell is kept
     /// whole on the side of its larger part (counted in [`REFUSED`]).
     fn split(&mut self, cell: &Cell, q: u32, cover: Cover) -> Split {
-        let mut signs = self.classify(cell, q);
+        let signs = self.classify(cell, q);
         if !signs.iter().any(|s| s.1 > 0) {
             return Split::Neg;
         }
         if !signs.iter().any(|s| s.1 < 0) {
             return Split::Pos;
         }
-        let tolerance2 = (WELD_TOLERANCE * WELD_TOLERANCE) * self.scale2;
+        if let Some(split) = self.try_split(cell, q, cover, signs.clone(), true) {
+            return split;
+        }
+        if let Some(split) = self.try_split(cell, q, cover, signs.clone(), false) {
+            return split;
+        }
+        REFUSED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        // Keep the cell whole on the side of most of its vertices' distance.
+        let plane = &self.planes[q as usize];
+        let balance: f64 = signs.iter().map(|s| plane.distance(&self.point(s.0))).sum();
+        if balance <= 0.0 { Split::Neg } else { Split::Pos }
+    }
+
+    /// One attempt at [`Arrangement::split`] for a straddling cell, with or without snapping;
+    /// `None` if the rounded geometry gives no closed parts.
+    fn try_split(&mut self, cell: &Cell, q: u32, cover: Cover, mut signs: Vec<(u32, i8)>, snap: bool) -> Option<Split> {
+        let tolerance2 = if snap { (WELD_TOLERANCE * WELD_TOLERANCE) * self.scale2 } else { -1.0 };
         // Pass 1: vertices that a rounded intersection point lands on are on the plane.
-        loop {
+        while snap {
             let mut snapped = false;
             for face in &cell.faces {
                 let n = face.verts.len();
@@ -364,16 +380,20 @@ impl Arrangement {
                 break;
             }
         }
-        for s in &signs {
-            if s.1 == 0 {
-                self.vertices[s.0 as usize].add_plane(q);
+        let commit = |this: &mut Self, signs: &[(u32, i8)]| {
+            for s in signs {
+                if s.1 == 0 {
+                    this.vertices[s.0 as usize].add_plane(q);
+                }
             }
-        }
+        };
         if !signs.iter().any(|s| s.1 > 0) {
-            return Split::Neg;
+            commit(self, &signs);
+            return Some(Split::Neg);
         }
         if !signs.iter().any(|s| s.1 < 0) {
-            return Split::Pos;
+            commit(self, &signs);
+            return Some(Split::Pos);
         }
         // Pass 2: the two parts, new points merged when they coincide.
         let mut created: Vec<u32> = Vec::new();
@@ -433,37 +453,31 @@ impl Arrangement {
         }
         // A part without volume (all its faces collapsed): the cell lies on the other side.
         if neg_faces.len() < 3 {
-            return Split::Pos;
+            commit(self, &signs);
+            return Some(Split::Pos);
         }
         if pos_faces.len() < 3 {
-            return Split::Neg;
+            commit(self, &signs);
+            return Some(Split::Neg);
         }
-        let refuse = |this: &Self, neg_faces: Vec<Face>, pos_faces: Vec<Face>| {
-            REFUSED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-            if this.cell_volume(&Cell { faces: neg_faces }) >= this.cell_volume(&Cell { faces: pos_faces }) {
-                Split::Neg
-            } else {
-                Split::Pos
-            }
-        };
-        let Some(cap) = self.chain_cap(&cap_edges) else {
-            return refuse(self, neg_faces, pos_faces);
-        };
+        // An edge on the plane shared by two faces of the same part (it touches the plane from
+        // that side, as after snapping) is not on the cap's boundary: drop both directions.
+        let all_edges = cap_edges.clone();
+        cap_edges.retain(|&(a, b)| !all_edges.contains(&(b, a)));
+        let cap = self.chain_cap(&cap_edges)?;
         let mut reversed = cap.clone();
         reversed.reverse();
         neg_faces.push(Face { verts: cap.clone(), plane: q, positive: true, cover });
         pos_faces.push(Face { verts: reversed, plane: q, positive: false, cover });
         let (neg, pos) = (Cell { faces: neg_faces }, Cell { faces: pos_faces });
         if !is_closed(&neg) || !is_closed(&pos) {
-            let (mut nf, mut pf) = (neg.faces, pos.faces);
-            nf.pop();
-            pf.pop();
-            return refuse(self, nf, pf);
+            return None;
         }
+        commit(self, &signs);
         for &v in &cap {
             self.vertices[v as usize].add_plane(q);
         }
-        Split::Both(neg, pos)
+        Some(Split::Both(neg, pos))
     }
 
     /// Chains directed cap edges into one loop; `None` if they do not form exactly one.

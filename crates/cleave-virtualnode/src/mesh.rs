@@ -661,6 +661,23 @@ impl Cuttable for VirtualNodeMesh {
             CutSurface::Triangles(t) => self.cut_triangles(t),
         }
     }
+
+    fn surface(&self) -> Option<cleave_core::EmbeddedSurface> {
+        let surface = self.render_surface();
+        Some(cleave_core::EmbeddedSurface {
+            rest_vertices: surface.positions,
+            on_cut: surface.kinds.iter().map(|k| *k == crate::surface::SurfaceKind::Cut).collect(),
+            triangles: surface.triangles,
+            embedding: surface.embedding,
+        })
+    }
+
+    fn pieces(&self) -> Vec<cleave_core::Piece> {
+        VirtualNodeMesh::pieces(self)
+            .into_iter()
+            .map(|p| cleave_core::Piece { elements: p.duplicates.len(), volume: p.volume, mass: p.mass })
+            .collect()
+    }
 }
 
 /// A region of a cut duplicate: its cells and volume.
