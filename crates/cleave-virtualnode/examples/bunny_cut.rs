@@ -12,13 +12,14 @@ use cleave_virtualnode::VirtualNodeMesh;
 use std::io::BufReader;
 use std::time::Instant;
 
-fn constraints(mesh: &VirtualNodeMesh) -> Constraints {
-    // The render surface's vertices collide with the ground.
-    Constraints {
-        contact_points: Some(mesh.render_surface().embedding),
+fn constraints(mesh: &VirtualNodeMesh, surface: &TriangleMesh) -> Result<Constraints, Box<dyn std::error::Error>> {
+    // The bunny's own vertices collide with the ground (re-embedded after every cut: each lies in
+    // exactly one region).
+    Ok(Constraints {
+        contact_points: Some(mesh.embed(&surface.vertices)?),
         planes: vec![PlaneCollider { point: Point3::origin(), normal: Vector3::z(), stiffness: 2e4, damping: 20.0 }],
         ..Default::default()
-    }
+    })
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -35,6 +36,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let material = Material::new(2e5, 0.3, 1000.0)?.with_damping(0.0, 0.01)?;
     let start = Instant::now();
     let mut body = VirtualNodeMesh::carve(&mesh, h, material)?;
+    if std::env::var("UNIFORM").is_ok() {
+        body.set_mass_lumping(cleave_virtualnode::MassLumping::Uniform);
+    }
     println!(
         "carved {} surface triangles at h = {h} m in {:.0} ms: {} lattice tets, {} duplicates, {} nodes, volume {:.6e} m³ (surface encloses {:.6e}, relative difference {:.1e})",
         mesh.triangles.len(),
@@ -50,8 +54,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // 3. Step it with the integrator.
     let mut settings = Settings::new(1.0 / 60.0);
     settings.rayleigh_beta = material.rayleigh_beta;
-    settings.solver = Solver::Cholesky;
-    let mut integrator = Integrator::new(&body, settings, constraints(&body))?;
+    settings.solver = Solver::ConjugateGradient { tolerance: 1e-6, max_iterations: 2000, assembled: true };
+    let mut integrator = Integrator::new(&body, settings, constraints(&body, &mesh)?)?;
     let volume0 = body.volume();
     let (lo, hi) = mesh.aabb();
     let centre = nalgebra::center(&lo, &hi);
@@ -70,7 +74,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let change = body.cut(&cut)?;
             let cut_ms = start.elapsed().as_secs_f64() * 1e3;
             let start = Instant::now();
-            integrator.apply_topology_change(&body, &change, constraints(&body))?;
+            integrator.apply_topology_change(&body, &change, constraints(&body, &mesh)?)?;
             let rebuild_ms = start.elapsed().as_secs_f64() * 1e3;
             let pieces = body.pieces();
             println!(
@@ -88,9 +92,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let report = integrator.step(&body)?;
         if step % 15 == 0 {
             println!(
-                "t = {:.3} s  step {:.1} ms  energy = {:.4} J  inverted = {}",
+                "t = {:.3} s  CG {:3}  step {:.1} ms (rotations {:.1}, assembly {:.1}, solve {:.1}, rest {:.1})  energy = {:.4} J  inverted = {}",
                 report.time,
+                report.iterations,
                 report.seconds.total() * 1e3,
+                report.seconds.rotations * 1e3,
+                report.seconds.assembly * 1e3,
+                report.seconds.solve * 1e3,
+                report.seconds.rest * 1e3,
                 report.total_energy(),
                 report.inverted_elements
             );

@@ -358,8 +358,9 @@ impl Arrangement {
     fn try_split(&mut self, cell: &Cell, q: u32, cover: Cover, mut signs: Vec<(u32, i8)>, snap: bool) -> Option<Split> {
         let tolerance2 = if snap { (WELD_TOLERANCE * WELD_TOLERANCE) * self.scale2 } else { -1.0 };
         // Pass 1: vertices that a rounded intersection point lands on are on the plane.
-        while snap {
-            let mut snapped = false;
+        let mut snapped = snap;
+        while snapped {
+            snapped = false;
             for face in &cell.faces {
                 let n = face.verts.len();
                 for i in 0..n {
@@ -375,9 +376,6 @@ impl Arrangement {
                         }
                     }
                 }
-            }
-            if !snapped {
-                break;
             }
         }
         let commit = |this: &mut Self, signs: &[(u32, i8)]| {

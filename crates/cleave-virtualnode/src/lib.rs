@@ -26,5 +26,5 @@ pub mod predicates;
 pub mod surface;
 pub mod tet;
 
-pub use mesh::{CutStats, Piece, VirtualNodeError, VirtualNodeMesh, box_surface};
+pub use mesh::{CutStats, MassLumping, Piece, VirtualNodeError, VirtualNodeMesh, box_surface};
 pub use surface::{RenderSurface, SurfaceKind};

@@ -70,6 +70,88 @@ struct Duplicate {
     cells: Arrangement,
     volume: Real,
     nodes: [u32; 4],
+    /// Derived from the cells once, when the duplicate is made.
+    cache: DuplicateCache,
+}
+
+/// What a rebuild needs of a duplicate, computed once per duplicate.
+#[derive(Clone, Debug)]
+struct DuplicateCache {
+    /// Open pieces of each tetrahedron face.
+    faces: [FacePieces; 4],
+    /// `∫_region N_k` for the four corners.
+    shape_integrals: [Real; 4],
+    /// Bounding box of the cells.
+    bounds: (Point3<Real>, Point3<Real>),
+    /// The rest stiffness scaled by the volume fraction, unless the region is the whole
+    /// tetrahedron (which shares its lattice class's matrix).
+    stiffness: Option<DMatrix<Real>>,
+}
+
+impl DuplicateCache {
+    fn new(tet: &LatticeTet, cells: &Arrangement, volume: Real, material: &Material) -> Self {
+        let faces = std::array::from_fn(|f| {
+            if cells.face_is_whole(f) {
+                return FacePieces::Whole;
+            }
+            let axis = face_axis(tet, f);
+            FacePieces::Pieces(
+                cells
+                    .open_face_pieces(f)
+                    .iter()
+                    .map(|loop_| loop_.iter().map(|p| project(p, axis)).collect())
+                    .collect(),
+            )
+        });
+        let mut shape_integrals = [0.0; 4];
+        for_each_cell_point(cells, &TetRule::of_degree(1), &mut |p, w| {
+            let n = tet.shape.barycentric(&p);
+            for c in 0..4 {
+                shape_integrals[c] += w * n[c];
+            }
+        });
+        let fraction = volume / tet.shape.volume;
+        // A whole tetrahedron (its volume from the cells equals the determinant's up to
+        // rounding) shares the lattice class's matrix.
+        let stiffness = ((fraction - 1.0).abs() > 1e-12).then(|| tet.shape.stiffness(material, fraction));
+        Self { faces, shape_integrals, bounds: cells.bounds(), stiffness }
+    }
+}
+
+impl Duplicate {
+    fn new(
+        tet_index: u32,
+        tet: &LatticeTet,
+        cells: Arrangement,
+        volume: Real,
+        nodes: [u32; 4],
+        material: &Material,
+    ) -> Self {
+        let cache = DuplicateCache::new(tet, &cells, volume, material);
+        Self { tet: tet_index, cells, volume, nodes, cache }
+    }
+}
+
+/// Calls `visit(point, weight)` for a rule on every cell, each convex cell fanned into
+/// tetrahedra from its vertex average.
+fn for_each_cell_point(cells: &Arrangement, rule: &TetRule, visit: &mut dyn FnMut(Point3<Real>, Real)) {
+    for cell in &cells.cells {
+        let apex = cells.cell_center(cell);
+        for face in &cell.faces {
+            let p0 = cells.point(face.verts[0]);
+            for w in face.verts[1..].windows(2) {
+                let (p1, p2) = (cells.point(w[0]), cells.point(w[1]));
+                let (e1, e2, e3) = (p0 - apex, p1 - apex, p2 - apex);
+                let volume = e1.dot(&e2.cross(&e3)) / 6.0;
+                if volume == 0.0 {
+                    continue;
+                }
+                for (q, wq) in rule.points.iter().zip(&rule.weights) {
+                    visit(apex + e1 * q[0] + e2 * q[1] + e3 * q[2], wq * volume);
+                }
+            }
+        }
+    }
 }
 
 /// A connected piece of material (a component of the duplicates linked by shared nodes).
@@ -96,6 +178,20 @@ pub struct CutStats {
     pub nodes: (usize, usize),
 }
 
+/// How the mass `ρ·V_region` of a duplicate is lumped to its four nodes. Both give the total
+/// mass `ρ·Σ V_region` exactly.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MassLumping {
+    /// `m_k = ρ ∫_region N_k`: the row sums of the consistent mass. Puts every region's mass at
+    /// its own centre of mass and makes `M g` the exact gravity load; a virtual node far from
+    /// its region gets little mass.
+    #[default]
+    RowSum,
+    /// `m_k = ρ V_region / 4` (sifakis2007's duplicates of the full tetrahedron, scaled): the
+    /// mass-to-stiffness ratio of every duplicate equals that of the uncut tetrahedron.
+    Uniform,
+}
+
 /// A BCC lattice carved into an object and cut, simulated with corotated linear tetrahedra.
 #[derive(Debug)]
 pub struct VirtualNodeMesh {
@@ -113,9 +209,11 @@ pub struct VirtualNodeMesh {
     blocks: BlockSet,
     epoch: u64,
     last_cut: CutStats,
+    lumping: MassLumping,
 }
 
 /// Open pieces of one face of one duplicate, projected for overlap tests.
+#[derive(Clone, Debug)]
 enum FacePieces {
     Whole,
     Pieces(Vec<Vec<Point2<Real>>>),
@@ -229,12 +327,17 @@ impl VirtualNodeMesh {
                 }
             }
         }
-        let mut duplicates = Vec::new();
+        let mut carved = carved;
+        let mut made = Vec::new();
         for (k, &t) in kept.iter().enumerate() {
-            for (cells, volume) in &carved[t] {
-                duplicates.push(Duplicate { tet: k as u32, cells: cells.clone(), volume: *volume, nodes: [0; 4] });
+            for (cells, volume) in std::mem::take(&mut carved[t]) {
+                made.push((k as u32, cells, volume));
             }
         }
+        let duplicates: Vec<Duplicate> = made
+            .into_par_iter()
+            .map(|(k, cells, volume)| Duplicate::new(k, &tets[k as usize], cells, volume, [0; 4], &material))
+            .collect();
         let mut mesh = Self {
             material,
             lattice,
@@ -250,6 +353,7 @@ impl VirtualNodeMesh {
             blocks: BlockSetBuilder::new().finish(0)?,
             epoch: 0,
             last_cut: CutStats::default(),
+            lumping: MassLumping::default(),
         };
         mesh.rebuild_topology(None)?;
         Ok(mesh)
@@ -359,29 +463,9 @@ impl VirtualNodeMesh {
         for (i, d) in self.duplicates.iter().enumerate() {
             dups_of_tet[d.tet as usize].push(i as u32);
         }
-        // Open face pieces of every duplicate, projected along the face normal's largest axis.
-        let face_pieces: Vec<[FacePieces; 4]> = self
-            .duplicates
-            .par_iter()
-            .map(|d| {
-                let tet = &self.tets[d.tet as usize];
-                std::array::from_fn(|f| {
-                    if d.cells.face_is_whole(f) {
-                        return FacePieces::Whole;
-                    }
-                    let axis = face_axis(tet, f);
-                    FacePieces::Pieces(
-                        d.cells
-                            .open_face_pieces(f)
-                            .iter()
-                            .map(|loop_| loop_.iter().map(|p| project(p, axis)).collect())
-                            .collect(),
-                    )
-                })
-            })
-            .collect();
         // Pairs of duplicates across each lattice face that are materially contiguous.
         let tets = &self.tets;
+        let duplicates = &self.duplicates;
         let lattice_h = self.lattice.h;
         let links: Vec<(u32, u8, u32, u8)> = (0..tets.len())
             .into_par_iter()
@@ -396,7 +480,10 @@ impl VirtualNodeMesh {
                     let threshold = OVERLAP_TOLERANCE * 2.0 * lattice_h * lattice_h;
                     for &a in &dups_of_tet[t] {
                         for &b in &dups_of_tet[other as usize] {
-                            let (pa, pb) = (&face_pieces[a as usize][f], &face_pieces[b as usize][of as usize]);
+                            let (pa, pb) = (
+                                &duplicates[a as usize].cache.faces[f],
+                                &duplicates[b as usize].cache.faces[of as usize],
+                            );
                             if contiguous(pa, pb, threshold, &mut scratch) {
                                 out.push((a, f as u8, b, of));
                             }
@@ -456,38 +543,58 @@ impl VirtualNodeMesh {
                 [p.x, p.y, p.z]
             })
             .collect();
-        // Row sums of the consistent mass: m_k = ρ ∫_region N_k (exact by the centroid rule on
-        // every fan tetrahedron, N being linear). They sum to ρ·volume, put every region's mass
-        // at its own centre of mass, and make `M g` the exact gravity load.
-        let mut lumped = vec![0.0; self.rest.len()];
-        let rho = self.material.density;
-        self.for_each_quadrature_point(1, &mut |d, p, w| {
-            let dup = &self.duplicates[d];
-            let n = self.tets[dup.tet as usize].shape.barycentric(&p);
-            for c in 0..4 {
-                for a in 0..3 {
-                    lumped[3 * dup.nodes[c] as usize + a] += rho * w * n[c];
-                }
-            }
-        });
-        self.mass = Mass::Lumped(lumped);
+        self.mass = self.lumped_mass();
         let mut builder = BlockSetBuilder::new();
         for k in &self.rest_library {
             builder.add_rest_matrix(k.clone())?;
         }
         for (i, d) in self.duplicates.iter().enumerate() {
             let tet = &self.tets[d.tet as usize];
-            let fraction = d.volume / tet.shape.volume;
-            let id = if fraction == 1.0 {
-                tet.rest_class
-            } else {
-                builder.add_rest_matrix(tet.shape.stiffness(&self.material, fraction))?
+            let id = match &d.cache.stiffness {
+                None => tet.rest_class,
+                Some(k) => builder.add_rest_matrix(k.clone())?,
             };
             builder.push(&d.nodes, id, Some(i as u32));
         }
         self.blocks = builder.finish(self.node_lattice.len())?;
         self.dups_of_tet = dups_of_tet;
         Ok(gather)
+    }
+
+    /// The lumped mass of the current duplicates under the chosen [`MassLumping`].
+    fn lumped_mass(&self) -> Mass {
+        let mut lumped = vec![0.0; self.rest.len()];
+        let rho = self.material.density;
+        match self.lumping {
+            MassLumping::RowSum => {
+                // m_k = ρ ∫_region N_k (exact: the centroid rule on every fan tetrahedron, N
+                // being linear).
+                for d in &self.duplicates {
+                    for (c, &n) in d.nodes.iter().enumerate() {
+                        for a in 0..3 {
+                            lumped[3 * n as usize + a] += rho * d.cache.shape_integrals[c];
+                        }
+                    }
+                }
+            }
+            MassLumping::Uniform => {
+                for d in &self.duplicates {
+                    for &n in &d.nodes {
+                        for a in 0..3 {
+                            lumped[3 * n as usize + a] += rho * d.volume / 4.0;
+                        }
+                    }
+                }
+            }
+        }
+        Mass::Lumped(lumped)
+    }
+
+    /// Chooses how region mass is lumped to the four nodes of its duplicate (rebuilds the mass;
+    /// no topology change).
+    pub fn set_mass_lumping(&mut self, lumping: MassLumping) {
+        self.lumping = lumping;
+        self.mass = self.lumped_mass();
     }
 
     /// Duplicates whose region may contain `p` (within `tolerance`), best first, with the
@@ -543,24 +650,7 @@ impl VirtualNodeMesh {
     fn for_each_quadrature_point(&self, degree: usize, visit: &mut dyn FnMut(usize, Point3<Real>, Real)) {
         let rule = TetRule::of_degree(degree);
         for (d, dup) in self.duplicates.iter().enumerate() {
-            let cells = &dup.cells;
-            for cell in &cells.cells {
-                let apex = cells.cell_center(cell);
-                for face in &cell.faces {
-                    let p0 = cells.point(face.verts[0]);
-                    for w in face.verts[1..].windows(2) {
-                        let (p1, p2) = (cells.point(w[0]), cells.point(w[1]));
-                        let (e1, e2, e3) = (p0 - apex, p1 - apex, p2 - apex);
-                        let volume = e1.dot(&e2.cross(&e3)) / 6.0;
-                        if volume == 0.0 {
-                            continue;
-                        }
-                        for (q, wq) in rule.points.iter().zip(&rule.weights) {
-                            visit(d, apex + e1 * q[0] + e2 * q[1] + e3 * q[2], wq * volume);
-                        }
-                    }
-                }
-            }
+            for_each_cell_point(&dup.cells, &rule, &mut |p, w| visit(d, p, w));
         }
     }
 }
@@ -664,8 +754,15 @@ impl Cuttable for VirtualNodeMesh {
 
     fn surface(&self) -> Option<cleave_core::EmbeddedSurface> {
         let surface = self.render_surface();
+        let mut piece_of_duplicate = vec![0u32; self.num_duplicates()];
+        for (k, piece) in VirtualNodeMesh::pieces(self).iter().enumerate() {
+            for &d in &piece.duplicates {
+                piece_of_duplicate[d as usize] = k as u32;
+            }
+        }
         Some(cleave_core::EmbeddedSurface {
             rest_vertices: surface.positions,
+            piece: surface.duplicates.iter().map(|&d| piece_of_duplicate[d as usize]).collect(),
             on_cut: surface.kinds.iter().map(|k| *k == crate::surface::SurfaceKind::Cut).collect(),
             triangles: surface.triangles,
             embedding: surface.embedding,
@@ -719,7 +816,7 @@ impl VirtualNodeMesh {
         let margin = 1e-9 * h;
         let selected: Vec<(u32, Vec<u32>)> = (0..self.duplicates.len() as u32)
             .filter(|&d| {
-                let (lo, hi) = self.duplicates[d as usize].cells.bounds();
+                let (lo, hi) = self.duplicates[d as usize].cache.bounds;
                 let (mut below, mut above) = (false, false);
                 for c in 0..8 {
                     let corner = Point3::new(
@@ -756,7 +853,7 @@ impl VirtualNodeMesh {
                     continue;
                 }
                 for &d in &self.dups_of_tet[t as usize] {
-                    if boxes_overlap(self.duplicates[d as usize].cells.bounds(), tb) {
+                    if boxes_overlap(self.duplicates[d as usize].cache.bounds, tb) {
                         let list = tris_of_dup.entry(d).or_default();
                         if list.last() != Some(&(i as u32)) {
                             list.push(i as u32);
@@ -817,7 +914,8 @@ impl VirtualNodeMesh {
                 Some(children) => {
                     for (cells, volume) in children {
                         parent.push(i as u32);
-                        self.duplicates.push(Duplicate { tet: dup.tet, cells, volume, nodes: dup.nodes });
+                        let tet = &self.tets[dup.tet as usize];
+                        self.duplicates.push(Duplicate::new(dup.tet, tet, cells, volume, dup.nodes, &self.material));
                     }
                 }
                 None => {
