@@ -3,6 +3,10 @@
 Every message must decode as JSON; /surface must carry schema foxglove.SceneUpdate with a
 triangle list; /stats must have one message per step. With --expect-rest, the recorded surface
 must fall, touch the ground (min z near 0) and come to rest (tiny kinetic energy at the end).
+With --expect-cut, /events must hold `cut` events, the last frame must have at least
+--min-pieces pieces, each piece's surface (its original and cut triangle lists, welded by
+position) must be closed with every edge in exactly two triangles, and the run must end at rest
+on the ground.
 """
 import json
 import sys
@@ -13,8 +17,12 @@ from mcap.reader import make_reader
 def main() -> int:
     path = sys.argv[1]
     expect_rest = "--expect-rest" in sys.argv
+    expect_cut = "--expect-cut" in sys.argv
+    min_pieces = int(sys.argv[sys.argv.index("--min-pieces") + 1]) if "--min-pieces" in sys.argv else 2
     counts = {}
     stats = []
+    cuts = 0
+    last_surface = None
     with open(path, "rb") as f:
         reader = make_reader(f)
         for schema, channel, message in reader.iter_messages():
@@ -25,8 +33,11 @@ def main() -> int:
                 assert schema.encoding == "jsonschema", schema.encoding
                 tri = data["entities"][0]["triangles"][0]
                 assert len(tri["indices"]) % 3 == 0 and len(tri["points"]) > 0
+                last_surface = data
             elif channel.topic == "/stats":
                 stats.append(data)
+            elif channel.topic == "/events" and data["kind"] == "cut":
+                cuts += 1
     print(f"{path}: {counts}")
     for topic in ("/surface", "/stats", "/events"):
         assert counts.get(topic, 0) > 0, f"no messages on {topic}"
@@ -39,7 +50,73 @@ def main() -> int:
         assert start_z > 0.2, "the bunny should start above the ground"
         assert abs(lowest) < 0.02, "the bunny should reach the ground"
         assert final["energy"]["kinetic"] < 1e-3, "the bunny should come to rest"
+    if expect_cut:
+        check_cut(last_surface, cuts, stats, min_pieces)
     return 0
+
+
+def closed_pieces(surface):
+    """Groups the triangle lists into pieces (lists come in piece order, original before cut,
+    colour tells the kind) and returns, per piece, (triangles, edges not in exactly two)."""
+    pieces = []
+    current = None
+    for lst in surface["entities"][0]["triangles"]:
+        is_cut = lst["color"]["g"] < 0.5
+        if current is None or not is_cut or current["has_cut"]:
+            current = {"lists": [], "has_cut": False}
+            pieces.append(current)
+        current["lists"].append(lst)
+        current["has_cut"] = current["has_cut"] or is_cut
+    result = []
+    tolerance = 1e-6  # metres: far above f32 rounding of the recorded points, far below an element
+    for piece in pieces:
+        cells = {}
+        ids = []
+        for lst in piece["lists"]:
+            for p in lst["points"]:
+                x = (p["x"], p["y"], p["z"])
+                key = tuple(int(v // tolerance) for v in x)
+                found = None
+                for dx in (-1, 0, 1):
+                    for dy in (-1, 0, 1):
+                        for dz in (-1, 0, 1):
+                            for (q, qid) in cells.get((key[0] + dx, key[1] + dy, key[2] + dz), ()):
+                                if max(abs(a - b) for a, b in zip(x, q)) <= tolerance:
+                                    found = qid
+                if found is None:
+                    found = len(ids)
+                    cells.setdefault(key, []).append((x, found))
+                ids.append(found)
+        edges = {}
+        triangles = 0
+        offset = 0
+        for lst in piece["lists"]:
+            idx = lst["indices"]
+            for t in range(0, len(idx), 3):
+                a, b, c = (ids[offset + idx[t]], ids[offset + idx[t + 1]], ids[offset + idx[t + 2]])
+                triangles += 1
+                if a == b or b == c or c == a:
+                    continue  # collapsed by the weld: a sliver thinner than the tolerance
+                for u, v in ((a, b), (b, c), (c, a)):
+                    e = (min(u, v), max(u, v))
+                    edges[e] = edges.get(e, 0) + 1
+            offset += len(lst["points"])
+        bad = sum(1 for n in edges.values() if n != 2)
+        result.append((triangles, bad))
+    return result
+
+
+def check_cut(surface, cuts, stats, min_pieces):
+    assert cuts > 0, "no cut events"
+    pieces = closed_pieces(surface)
+    print(f"cut events: {cuts}; last frame pieces (triangles, open edges): {pieces}")
+    assert len(pieces) >= min_pieces, f"expected at least {min_pieces} pieces, got {len(pieces)}"
+    for k, (triangles, bad) in enumerate(pieces):
+        assert triangles > 0 and bad == 0, f"piece {k} is not closed: {bad} edges not in two triangles"
+    final = stats[-1]
+    print(f"final min z {final['surface']['min_z']:.4f} m, kinetic energy {final['energy']['kinetic']:.3e} J")
+    assert abs(final["surface"]["min_z"]) < 0.01, "the pieces should rest on the ground"
+    assert final["energy"]["kinetic"] < 1e-2, "the pieces should come to rest"
 
 
 if __name__ == "__main__":

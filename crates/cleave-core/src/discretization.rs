@@ -154,6 +154,8 @@ pub struct EmbeddedSurface {
     pub triangles: Vec<[u32; 3]>,
     /// Per triangle: lies on a cut (`true`) or on the original surface.
     pub on_cut: Vec<bool>,
+    /// Per triangle: the piece (index into `Cuttable::pieces`) it bounds.
+    pub piece: Vec<u32>,
     /// Per vertex, the row that evaluates it from the DOFs.
     pub embedding: Embedding,
 }

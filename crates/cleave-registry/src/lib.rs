@@ -5,19 +5,21 @@
 
 pub mod backend;
 mod dg;
+mod virtualnode;
 mod voxel;
 
 pub use backend::{
     Backend, BackendError, BuiltSolid, Capabilities, Region, ResolvedPins, RestSurface, Shape, SolidRequest,
 };
 pub use dg::DgBackend;
+pub use virtualnode::VirtualNodeBackend;
 pub use voxel::VoxelBackend;
 
 use cleave_testkit::compare::CompareBackend;
 
 /// Every registered backend, in report order.
 pub fn registered() -> Vec<Box<dyn Backend>> {
-    vec![Box::new(VoxelBackend), Box::new(DgBackend)]
+    vec![Box::new(VoxelBackend), Box::new(DgBackend), Box::new(VirtualNodeBackend)]
 }
 
 /// The registered backend called `name`.

@@ -135,6 +135,7 @@ pub struct Simulation {
     planes: Vec<PlaneCollider>,
     probe_points: Vec<Point3<Real>>,
     surface_on_cut: Vec<bool>,
+    surface_piece: Vec<u32>,
     timeline: Vec<TimedCut>,
     cuts: CutSummary,
 }
@@ -277,6 +278,7 @@ impl Simulation {
         let (element_count, element_size) = (built.elements, built.element_size);
         let (surface_vertices, mut surface_triangles) = (built.surface.vertices, built.surface.triangles);
         let mut surface_on_cut = vec![false; surface_triangles.len()];
+        let mut surface_piece = Vec::new();
         let cut_surface = discretization.as_cuttable().and_then(|c| c.surface());
         let info = BuildInfo {
             backend: discretization.name().to_string(),
@@ -293,6 +295,7 @@ impl Simulation {
             Some(own) => {
                 surface_triangles = own.triangles;
                 surface_on_cut = own.on_cut;
+                surface_piece = own.piece;
                 own.embedding
             }
             None => discretization
@@ -362,6 +365,7 @@ impl Simulation {
             planes,
             probe_points,
             surface_on_cut,
+            surface_piece,
             timeline,
             cuts,
         };
@@ -412,7 +416,7 @@ impl Simulation {
         self.surface_points.evaluate(self.integrator.positions(), &mut self.points);
         let time = self.integrator.time();
         if let Some(recorder) = self.recorder.as_mut() {
-            recorder.surface(time, &self.points, &self.surface_triangles, &self.surface_on_cut)?;
+            recorder.surface(time, &self.points, &self.surface_triangles, &self.surface_on_cut, &self.surface_piece)?;
         }
         Ok(())
     }
@@ -522,6 +526,7 @@ impl Simulation {
         self.probes = d.embed(&self.probe_points).map_err(|e| build_error(format!("probe after a cut: {e}")))?;
         self.surface_triangles = surface.triangles;
         self.surface_on_cut = surface.on_cut;
+        self.surface_piece = surface.piece;
         self.surface_points = surface.embedding;
         let seconds = clock.elapsed().as_secs_f64();
         self.cuts.changes += 1;
