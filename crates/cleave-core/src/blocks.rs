@@ -95,6 +95,7 @@ pub struct BlockSet {
     /// Per block, the index into `anchors` or `NO_ANCHOR`.
     anchor_ids: Vec<u32>,
     anchors: Vec<DMatrix<Real>>,
+    translation_invariant: bool,
     plan: ScatterPlan,
 }
 
@@ -108,6 +109,7 @@ pub struct BlockSetBuilder {
     frames: Vec<u32>,
     anchor_ids: Vec<u32>,
     anchors: Vec<DMatrix<Real>>,
+    translation_invariant: bool,
 }
 
 impl BlockSetBuilder {
@@ -128,6 +130,16 @@ impl BlockSetBuilder {
         }
         self.rest_matrices.push(k);
         Ok(index as u32)
+    }
+
+    /// Declares that every block annihilates a common translation of its nodes (true of the
+    /// elastic blocks of nodal bases: cubes, tetrahedra). The force and energy kernels then take
+    /// positions relative to each block's first node, which gives the same value without
+    /// rounding that grows with the distance to the world origin. Not for DG, whose translation
+    /// lives on the constant basis function only.
+    pub fn translation_invariant(mut self) -> Self {
+        self.translation_invariant = true;
+        self
     }
 
     /// Appends a block.
@@ -186,6 +198,7 @@ impl BlockSetBuilder {
             frames: self.frames,
             anchor_ids: self.anchor_ids,
             anchors: self.anchors,
+            translation_invariant: self.translation_invariant,
             plan,
         })
     }
@@ -247,7 +260,7 @@ impl BlockSet {
             let r = Self::rotation(rotations, block.frame);
             let n = 3 * block.nodes.len();
             let mut local = [0.0; 3 * MAX_BLOCK_NODES];
-            corotated_displacement(&r, block.nodes, x, rest, &mut local[..n]);
+            corotated_displacement(&r, block.nodes, x, rest, self.translation_invariant, &mut local[..n]);
             match block.anchor {
                 None => apply_warped(block.rest, &r, &local[..n], block.nodes, -1.0, buf, base),
                 Some(h) => {
@@ -293,7 +306,7 @@ impl BlockSet {
                 let r = Self::rotation(rotations, block.frame);
                 let n = 3 * block.nodes.len();
                 let mut local = [0.0; 3 * MAX_BLOCK_NODES];
-                corotated_displacement(&r, block.nodes, x, rest, &mut local[..n]);
+                corotated_displacement(&r, block.nodes, x, rest, self.translation_invariant, &mut local[..n]);
                 let (k, left, scale) = match block.anchor {
                     None => (block.rest, local, 0.5),
                     Some(h) => {
@@ -478,14 +491,29 @@ impl BlockRanks {
     }
 }
 
-/// `local = Rᵀ x_b − X_b`, the corotated displacement of the block's nodes.
+/// `local = Rᵀ x_b − X_b`, the corotated displacement of the block's nodes; with `relative`
+/// (a translation-invariant block) `Rᵀ (x_b − x_0) − (X_b − X_0)` relative to its first node.
 #[inline]
-fn corotated_displacement(r: &Matrix3<Real>, nodes: &[u32], x: &[Real], rest: &[Real], local: &mut [Real]) {
+fn corotated_displacement(
+    r: &Matrix3<Real>,
+    nodes: &[u32],
+    x: &[Real],
+    rest: &[Real],
+    relative: bool,
+    local: &mut [Real],
+) {
+    let (o, o_rest) = match (relative, nodes.first()) {
+        (true, Some(&first)) => {
+            let f = 3 * first as usize;
+            ([x[f], x[f + 1], x[f + 2]], [rest[f], rest[f + 1], rest[f + 2]])
+        }
+        _ => ([0.0; 3], [0.0; 3]),
+    };
     for (a, &node) in nodes.iter().enumerate() {
         let i = 3 * node as usize;
-        let p = r.tr_mul(&nalgebra::Vector3::new(x[i], x[i + 1], x[i + 2]));
+        let p = r.tr_mul(&nalgebra::Vector3::new(x[i] - o[0], x[i + 1] - o[1], x[i + 2] - o[2]));
         for c in 0..3 {
-            local[3 * a + c] = p[c] - rest[i + c];
+            local[3 * a + c] = p[c] - (rest[i + c] - o_rest[c]);
         }
     }
 }

@@ -210,6 +210,20 @@ pub struct VirtualNodeMesh {
     epoch: u64,
     last_cut: CutStats,
     lumping: MassLumping,
+    /// Contiguous duplicate pairs across lattice faces: `(a, face of a, b, face of b)`.
+    links: Vec<Link>,
+}
+
+/// Two duplicates contiguous across a lattice face: `(a, face of a, b, face of b)`.
+type Link = (u32, u8, u32, u8);
+
+/// What a rebuild after a cut may keep: the old links between duplicates the cut left alone.
+struct LinkReuse {
+    old_links: Vec<Link>,
+    /// New index of every old duplicate that was kept unchanged.
+    new_of_old: Vec<Option<u32>>,
+    /// Lattice tetrahedra with a replaced duplicate.
+    changed_tet: Vec<bool>,
 }
 
 /// Open pieces of one face of one duplicate, projected for overlap tests.
@@ -354,8 +368,9 @@ impl VirtualNodeMesh {
             epoch: 0,
             last_cut: CutStats::default(),
             lumping: MassLumping::default(),
+            links: Vec::new(),
         };
-        mesh.rebuild_topology(None)?;
+        mesh.rebuild_topology(None, None)?;
         Ok(mesh)
     }
 
@@ -458,7 +473,11 @@ impl VirtualNodeMesh {
     /// Identifies node copies across materially contiguous faces and rebuilds nodes, mass and
     /// blocks. With `old = (old nodes per duplicate, parent of each duplicate)`, copies are only
     /// identified when they came from the same old node, so the result refines the old nodes.
-    fn rebuild_topology(&mut self, old: Option<(&[[u32; 4]], &[u32])>) -> Result<Vec<u32>, VirtualNodeError> {
+    fn rebuild_topology(
+        &mut self,
+        old: Option<(&[[u32; 4]], &[u32])>,
+        reuse: Option<&LinkReuse>,
+    ) -> Result<Vec<u32>, VirtualNodeError> {
         let mut dups_of_tet = vec![Vec::new(); self.tets.len()];
         for (i, d) in self.duplicates.iter().enumerate() {
             dups_of_tet[d.tet as usize].push(i as u32);
@@ -467,7 +486,7 @@ impl VirtualNodeMesh {
         let tets = &self.tets;
         let duplicates = &self.duplicates;
         let lattice_h = self.lattice.h;
-        let links: Vec<(u32, u8, u32, u8)> = (0..tets.len())
+        let mut links: Vec<Link> = (0..tets.len())
             .into_par_iter()
             .flat_map_iter(|t| {
                 let mut out = Vec::new();
@@ -475,6 +494,10 @@ impl VirtualNodeMesh {
                 for f in 0..4 {
                     let Some((other, of)) = tets[t].neighbors[f] else { continue };
                     if (other as usize) < t {
+                        continue;
+                    }
+                    // Faces between two tetrahedra the cut did not touch keep their links.
+                    if reuse.is_some_and(|r| !r.changed_tet[t] && !r.changed_tet[other as usize]) {
                         continue;
                     }
                     let threshold = OVERLAP_TOLERANCE * 2.0 * lattice_h * lattice_h;
@@ -493,6 +516,15 @@ impl VirtualNodeMesh {
                 out
             })
             .collect();
+        if let Some(r) = reuse {
+            // Links of faces recomputed above are not kept (a changed tetrahedron may still hold
+            // unchanged duplicates).
+            links.extend(r.old_links.iter().filter_map(|&(a, f, b, of)| {
+                let (a, b) = (r.new_of_old[a as usize]?, r.new_of_old[b as usize]?);
+                let (ta, tb) = (duplicates[a as usize].tet as usize, duplicates[b as usize].tet as usize);
+                (!r.changed_tet[ta] && !r.changed_tet[tb]).then_some((a, f, b, of))
+            }));
+        }
         let num_copies = 4 * self.duplicates.len();
         let mut uf = UnionFind::new(num_copies);
         for &(a, f, b, of) in &links {
@@ -513,16 +545,20 @@ impl VirtualNodeMesh {
             }
         }
         // Classes → nodes, ordered by lattice node, then by first copy.
-        let mut first: HashMap<usize, (u32, usize)> = HashMap::new();
-        for copy in 0..num_copies {
-            let root = uf.find(copy);
-            let d = &self.duplicates[copy / 4];
-            let lattice_node = self.tets[d.tet as usize].nodes[copy % 4];
-            first.entry(root).or_insert((lattice_node, copy));
+        let roots: Vec<u32> = (0..num_copies).map(|c| uf.find(c) as u32).collect();
+        let mut seen = vec![false; num_copies];
+        let mut classes: Vec<(u32, usize, usize)> = Vec::new();
+        for (copy, &root) in roots.iter().enumerate() {
+            if !std::mem::replace(&mut seen[root as usize], true) {
+                let lattice_node = self.tets[self.duplicates[copy / 4].tet as usize].nodes[copy % 4];
+                classes.push((lattice_node, copy, root as usize));
+            }
         }
-        let mut classes: Vec<(u32, usize, usize)> = first.into_iter().map(|(root, (n, c))| (n, c, root)).collect();
         classes.sort_unstable();
-        let node_of_root: HashMap<usize, u32> = classes.iter().enumerate().map(|(i, c)| (c.2, i as u32)).collect();
+        let mut node_of_root = vec![u32::MAX; num_copies];
+        for (i, c) in classes.iter().enumerate() {
+            node_of_root[c.2] = i as u32;
+        }
         let mut gather = Vec::with_capacity(classes.len());
         for &(_, copy, _) in &classes {
             if let Some((old_nodes, parent)) = old {
@@ -531,7 +567,7 @@ impl VirtualNodeMesh {
         }
         for (i, d) in self.duplicates.iter_mut().enumerate() {
             for c in 0..4 {
-                d.nodes[c] = node_of_root[&uf.find(4 * i + c)];
+                d.nodes[c] = node_of_root[roots[4 * i + c] as usize];
             }
         }
         self.node_lattice = classes.iter().map(|c| c.0).collect();
@@ -544,7 +580,7 @@ impl VirtualNodeMesh {
             })
             .collect();
         self.mass = self.lumped_mass();
-        let mut builder = BlockSetBuilder::new();
+        let mut builder = BlockSetBuilder::new().translation_invariant();
         for k in &self.rest_library {
             builder.add_rest_matrix(k.clone())?;
         }
@@ -558,6 +594,7 @@ impl VirtualNodeMesh {
         }
         self.blocks = builder.finish(self.node_lattice.len())?;
         self.dups_of_tet = dups_of_tet;
+        self.links = links;
         Ok(gather)
     }
 
@@ -909,9 +946,15 @@ impl VirtualNodeMesh {
         let old = std::mem::take(&mut self.duplicates);
         let old_nodes: Vec<[u32; 4]> = old.iter().map(|d| d.nodes).collect();
         let mut parent = Vec::with_capacity(old.len() + replaced.len());
+        let mut reuse = LinkReuse {
+            old_links: std::mem::take(&mut self.links),
+            new_of_old: vec![None; old.len()],
+            changed_tet: vec![false; self.tets.len()],
+        };
         for (i, dup) in old.into_iter().enumerate() {
             match replaced.remove(&(i as u32)) {
                 Some(children) => {
+                    reuse.changed_tet[dup.tet as usize] = true;
                     for (cells, volume) in children {
                         parent.push(i as u32);
                         let tet = &self.tets[dup.tet as usize];
@@ -919,13 +962,14 @@ impl VirtualNodeMesh {
                     }
                 }
                 None => {
+                    reuse.new_of_old[i] = Some(self.duplicates.len() as u32);
                     parent.push(i as u32);
                     self.duplicates.push(dup);
                 }
             }
         }
         let gather = self
-            .rebuild_topology(Some((&old_nodes, &parent)))
+            .rebuild_topology(Some((&old_nodes, &parent)), Some(&reuse))
             .map_err(|e| TopologyError::Invalid(format!("rebuilding after the cut failed: {e}")))?;
         self.epoch += 1;
         self.last_cut = CutStats {

@@ -103,7 +103,7 @@ impl VoxelMesh {
             }
         }
         let stiffness = Box::new(cube_stiffness(&material, h));
-        let mut builder = BlockSetBuilder::new();
+        let mut builder = BlockSetBuilder::new().translation_invariant();
         let rest_id = builder.add_rest_matrix(DMatrix::from_row_slice(24, 24, &stiffness[..]))?;
         for (cube, nodes) in cube_nodes.iter().enumerate() {
             builder.push(nodes, rest_id, Some(cube as u32));
@@ -288,14 +288,23 @@ impl VoxelMesh {
             let nodes = &self.cube_nodes[cube];
             let r = &rotations[cube];
             let mut local = [0.0; 24];
+            // For the force, positions are taken relative to the cube's first corner (in x and
+            // in X): K annihilates a common translation, so the result is the same, but the
+            // rounding no longer grows with the distance to the world origin.
+            let first = 3 * nodes[0] as usize;
+            let (o, o_rest) = if subtract_rest {
+                ([v[first], v[first + 1], v[first + 2]], [self.rest[first], self.rest[first + 1], self.rest[first + 2]])
+            } else {
+                ([0.0; 3], [0.0; 3])
+            };
             for (c, &n) in nodes.iter().enumerate() {
                 let i = 3 * n as usize;
-                let (p0, p1, p2) = (v[i], v[i + 1], v[i + 2]);
+                let (p0, p1, p2) = (v[i] - o[0], v[i + 1] - o[1], v[i + 2] - o[2]);
                 for a in 0..3 {
                     // (Rᵀ p)_a = Σ_b R_ba p_b
                     let mut value = r[(0, a)] * p0 + r[(1, a)] * p1 + r[(2, a)] * p2;
                     if subtract_rest {
-                        value -= self.rest[i + a];
+                        value -= self.rest[i + a] - o_rest[a];
                     }
                     local[3 * c + a] = value;
                 }
