@@ -20,8 +20,8 @@ use std::collections::HashMap;
 /// Why a virtual node mesh could not be built.
 #[derive(Debug, thiserror::Error)]
 pub enum VirtualNodeError {
-    /// Lattice spacing not finite and positive.
-    #[error("lattice spacing must be finite and > 0, got {0}")]
+    /// Lattice spacing not finite and positive, or too small for the coordinates' precision.
+    #[error("lattice spacing must be finite, > 0 and resolvable at the surface's coordinates, got {0}")]
     Spacing(Real),
     /// The surface is unusable for carving.
     #[error("surface: {0}")]
@@ -315,7 +315,8 @@ impl VirtualNodeMesh {
         let mut cube_tets: HashMap<[i32; 3], Vec<u32>> = HashMap::new();
         for (k, corners) in kept_corners.iter().enumerate() {
             let points = corners.map(|d| lattice.position(d));
-            let shape = TetShape::new(points).expect("lattice tetrahedra are not degenerate");
+            // Degenerate only when h/2 is below the rounding of the coordinates.
+            let shape = TetShape::new(points).ok_or(VirtualNodeError::Spacing(h))?;
             let key: [[i32; 3]; 3] =
                 std::array::from_fn(|i| std::array::from_fn(|a| corners[i + 1][a] - corners[0][a]));
             let rest_class = *classes.entry(key).or_insert_with(|| {

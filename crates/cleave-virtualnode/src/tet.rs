@@ -23,6 +23,9 @@ impl TetShape {
     pub fn new(corners: [Point3<Real>; 4]) -> Option<Self> {
         let dm = Matrix3::from_columns(&[corners[1] - corners[0], corners[2] - corners[0], corners[3] - corners[0]]);
         let volume = dm.determinant() / 6.0;
+        if volume.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return None;
+        }
         let dm_inv = dm.try_inverse()?;
         let g1 = dm_inv.row(0).transpose();
         let g2 = dm_inv.row(1).transpose();

@@ -117,3 +117,29 @@ fn sticks_with_planes_through_lattice_nodes() {
     let planes: Vec<Real> = (1..16).map(|i| i as Real / 16.0).collect();
     sticks(0.125, &planes, 256);
 }
+
+#[test]
+fn a_plane_and_a_soup_of_two_triangles_covering_it_cut_alike() {
+    let (lo, hi) = (Point3::new(0.013, -0.37, 0.2), Point3::new(0.731, 0.05, 0.66));
+    let mut by_plane = VirtualNodeMesh::from_box(lo, hi, 0.07, material()).unwrap();
+    let mut by_soup = VirtualNodeMesh::from_box(lo, hi, 0.07, material()).unwrap();
+    // The plane 2x + y − z = 0.1, and a square on it far larger than the box.
+    let n = Vector3::new(2.0, 1.0, -1.0);
+    let point = Point3::new(0.05, 0.0, 0.0);
+    by_plane.cut(&CutSurface::Plane { point, normal: n }).unwrap();
+    let on_plane = |y: Real, z: Real| Point3::new((0.1 - y + z) / 2.0, y, z);
+    let q = [on_plane(-5.0, -5.0), on_plane(5.0, -5.0), on_plane(5.0, 5.0), on_plane(-5.0, 5.0)];
+    by_soup.cut(&CutSurface::Triangles(vec![[q[0], q[1], q[2]], [q[0], q[2], q[3]]])).unwrap();
+    let volumes = |m: &VirtualNodeMesh| {
+        let mut v: Vec<Real> = m.pieces().iter().map(|p| p.volume).collect();
+        v.sort_by(Real::total_cmp);
+        v
+    };
+    let (a, b) = (volumes(&by_plane), volumes(&by_soup));
+    println!("plane: {a:?}; soup: {b:?}");
+    assert_eq!(a.len(), 2);
+    assert_eq!(a.len(), b.len());
+    for (x, y) in a.iter().zip(&b) {
+        assert!((x - y).abs() < 1e-12, "{x} vs {y}");
+    }
+}
