@@ -616,6 +616,15 @@ impl Arrangement {
                 out.push(cell);
                 continue;
             }
+            // A cell in the closed outer half-space of a side plane meets the triangle at most
+            // in a set of zero area.
+            let outside = tri.sides.iter().any(|&(q, flip)| {
+                cell.faces.iter().all(|f| f.verts.iter().all(|&v| self.side(v, q) * if flip { -1 } else { 1 } <= 0))
+            });
+            if outside {
+                out.push(cell);
+                continue;
+            }
             changed |= self.cut_cell(cell, &tri, cover, &mut out);
         }
         self.cells = out;
