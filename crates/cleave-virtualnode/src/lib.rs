@@ -1,7 +1,7 @@
 //! cleave-virtualnode: the generalized virtual node algorithm of Sifakis, Der and Fedkiw,
 //! "Arbitrary cutting of deformable tetrahedralized objects" (SCA 2007), on a BCC lattice.
-//! The crate's `README.md` states what is decided exactly, what is rounded, and what the tests
-//! measured.
+//! `docs/math/virtual-node.md` states what is decided exactly, what is rounded, and what the
+//! tests measured.
 //!
 //! - [`lattice`]: the body-centred cubic tetrahedral lattice.
 //! - [`arrangement`]: the convex cells of one tetrahedron's material, split by cut triangles
