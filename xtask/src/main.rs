@@ -189,12 +189,21 @@ fn run(
     let mut first_energy = None;
     let mut last_report = None;
     let mut failure = None;
+    let mut frame_walls = [(0.0f64, 0usize); 2];
     while simulation.steps_done() < total {
         if interrupted.load(Ordering::SeqCst) {
             failure = Some(format!("interrupted by Ctrl-C after {} steps", simulation.steps_done()));
             break;
         }
-        match simulation.step() {
+        let changes_before = simulation.cut_summary().changes;
+        let step_clock = Instant::now();
+        let result = simulation.step();
+        let step_wall = step_clock.elapsed().as_secs_f64();
+        // Frame rate with and without a topology change in the step (recording included).
+        let bucket = usize::from(simulation.cut_summary().changes > changes_before);
+        frame_walls[bucket].0 += step_wall;
+        frame_walls[bucket].1 += 1;
+        match result {
             Ok(report) => {
                 let s = report.seconds;
                 for (acc, value) in phase.iter_mut().zip([s.rotations, s.assembly, s.solve, s.rest]) {
@@ -259,6 +268,15 @@ fn run(
             cuts.elements,
             volume_drift,
             mass_drift
+        );
+        let rate =
+            |(wall, steps): (f64, usize)| if steps > 0 { format!("{:.1}", steps as f64 / wall) } else { "—".into() };
+        println!(
+            "steps/s (recording included): {} in the {} steps that cut, {} in the {} others",
+            rate(frame_walls[1]),
+            frame_walls[1].1,
+            rate(frame_walls[0]),
+            frame_walls[0].1
         );
         for (k, piece) in cuts.pieces.iter().enumerate() {
             println!(
