@@ -569,7 +569,7 @@ impl Integrator {
     /// Adds penalty forces at `x` to `work.force` and records which contacts are active.
     ///
     /// A contact is active when its point is below the plane at `x` or would be at
-    /// `x + h (v + h g)`: a point 2.4 m/s fast moves 4 cm in a 1/60 s step, so testing `x` alone
+    /// `x + h (v + h g)` (gravity only for points not moving away from the plane): a point 2.4 m/s fast moves 4 cm in a 1/60 s step, so testing `x` alone
     /// lets it sink a whole step's travel before the penalty sees it; and a body placed at rest
     /// on the plane would otherwise fall freely for its first step (h² g = 2.7 mm at 1/60 s) onto
     /// thousands of contact points at once (a 70× energy spike on the cut bunny's dense surface). An active contact gets the linearized force
@@ -585,8 +585,12 @@ impl Integrator {
             for (p_index, plane) in self.constraints.planes.iter().enumerate() {
                 for i in 0..points.len() {
                     let depth = plane.normal.dot(&(points.point(&self.x, i) - plane.point));
-                    let velocity = points.point(&self.v, i).coords + h * self.settings.gravity;
-                    let predicted = depth + h * plane.normal.dot(&velocity);
+                    // Gravity joins the prediction only for a point not moving away, so a
+                    // body resting on the plane is held from its first step while a point
+                    // leaving it (a hop) is let go.
+                    let approach = plane.normal.dot(&points.point(&self.v, i).coords);
+                    let pulled = approach + h * plane.normal.dot(&self.settings.gravity);
+                    let predicted = depth + h * if approach <= 0.0 { pulled } else { approach };
                     self.work.contact_depth[p_index * points.len() + i] = depth.min(predicted);
                     if depth.min(predicted) < 0.0 {
                         let f = plane.normal * (-plane.stiffness * depth.min(0.0));

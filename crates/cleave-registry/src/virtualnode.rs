@@ -9,7 +9,8 @@ use crate::backend::{
 };
 use cleave_core::{Material, Point3, Real};
 use cleave_testkit::compare::{
-    BoxGrid, BuildError, BuiltProblem, CompareBackend, DirichletSpec, ExtremeCase, NotApplicable, stretch_start,
+    BoxGrid, BuildError, BuiltProblem, CompareBackend, DirichletSpec, ExtremeCase, NotApplicable, corner_pushed_in,
+    stretch_start,
 };
 use cleave_testkit::problems::nodal_dirichlet;
 use cleave_virtualnode::{VirtualNodeMesh, box_surface};
@@ -109,22 +110,8 @@ impl CompareBackend for VirtualNodeBackend {
         built: &BuiltProblem,
         grid: &BoxGrid,
     ) -> Result<Vec<Real>, NotApplicable> {
-        let rest = built.discretization.rest_dofs();
         match case {
-            ExtremeCase::PreInverted => {
-                // The free-end corner node moves 1.5 h inwards along every axis, through the
-                // faces of the tetrahedra around it: they invert.
-                let corner = grid.max_corner();
-                let node = rest
-                    .chunks_exact(3)
-                    .position(|p| (0..3).all(|a| (p[a] - corner[a]).abs() < 1e-9 * grid.h.max(1.0)))
-                    .ok_or_else(|| NotApplicable("no node at the outer corner of the box".into()))?;
-                let mut x = rest.to_vec();
-                for a in 0..3 {
-                    x[3 * node + a] -= 1.5 * grid.h;
-                }
-                Ok(x)
-            }
+            ExtremeCase::PreInverted => corner_pushed_in(built, grid),
             ExtremeCase::Sliver => Err(NotApplicable(
                 "uncut lattice tetrahedra are congruent; slivers come from cuts (the cut-beam rows of issue 16)".into(),
             )),

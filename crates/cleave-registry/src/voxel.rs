@@ -7,7 +7,8 @@ use crate::backend::{
 };
 use cleave_core::{Discretization, Material, Point3, Real};
 use cleave_testkit::compare::{
-    BoxGrid, BuildError, BuiltProblem, CompareBackend, DirichletSpec, ExtremeCase, NotApplicable, stretch_start,
+    BoxGrid, BuildError, BuiltProblem, CompareBackend, DirichletSpec, ExtremeCase, NotApplicable, corner_pushed_in,
+    stretch_start,
 };
 use cleave_testkit::problems::nodal_dirichlet;
 use cleave_voxel::VoxelMesh;
@@ -55,23 +56,8 @@ impl CompareBackend for VoxelBackend {
         built: &BuiltProblem,
         grid: &BoxGrid,
     ) -> Result<Vec<Real>, NotApplicable> {
-        let rest = built.discretization.rest_dofs();
         match case {
-            ExtremeCase::PreInverted => {
-                // The outer corner of the free-end cube (it belongs to that cube only) moves to
-                // (−½, −½, −½) in the cube's coordinates, through the three faces opposite it:
-                // the centre gradient is F = I − (9/8)·(1,1,1)⊗(1,1,1)/3 with det F = −1/8.
-                let corner = grid.max_corner();
-                let node = rest
-                    .chunks_exact(3)
-                    .position(|p| (0..3).all(|a| (p[a] - corner[a]).abs() < 1e-9 * grid.h.max(1.0)))
-                    .ok_or_else(|| NotApplicable("no node at the outer corner of the box".into()))?;
-                let mut x = rest.to_vec();
-                for a in 0..3 {
-                    x[3 * node + a] -= 1.5 * grid.h;
-                }
-                Ok(x)
-            }
+            ExtremeCase::PreInverted => corner_pushed_in(built, grid),
             ExtremeCase::Sliver => Err(NotApplicable("equal cubes (a voxel mesh has no slivers)".into())),
             ExtremeCase::Stretch100 => Ok(stretch_start(built, grid)),
         }

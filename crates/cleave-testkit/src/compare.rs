@@ -108,6 +108,23 @@ impl ExtremeCase {
 #[derive(Clone, Debug, PartialEq)]
 pub struct NotApplicable(pub String);
 
+/// The pre-inverted start of a nodal backend: the node at the box's outer corner (x, y, z
+/// maximal) moved by 1.5 h inwards along every axis, through the faces of the elements around it
+/// (for a cube, F at its centre is I − (9/8)·(1,1,1)⊗(1,1,1)/3 with det F = −1/8).
+pub fn corner_pushed_in(built: &BuiltProblem, grid: &BoxGrid) -> Result<Vec<Real>, NotApplicable> {
+    let rest = built.discretization.rest_dofs();
+    let corner = grid.max_corner();
+    let node = rest
+        .chunks_exact(3)
+        .position(|p| (0..3).all(|a| (p[a] - corner[a]).abs() < 1e-9 * grid.h.max(1.0)))
+        .ok_or_else(|| NotApplicable("no node at the outer corner of the box".into()))?;
+    let mut x = rest.to_vec();
+    for a in 0..3 {
+        x[3 * node + a] -= 1.5 * grid.h;
+    }
+    Ok(x)
+}
+
 /// The 100× stretch along x from the clamped face: the linear map on every coefficient of the
 /// rest DOFs, the translation through the backend (non-nodal bases carry it on their constant
 /// functions only), so it is exact for every backend.
