@@ -10,9 +10,8 @@ use crate::backend::{
 use cleave_core::{Material, Point3, Real};
 use cleave_testkit::compare::{
     BoxGrid, BuildError, BuiltProblem, CompareBackend, DirichletSpec, ExtremeCase, NotApplicable, corner_pushed_in,
-    stretch_start,
+    nodal_problem, stretch_start,
 };
-use cleave_testkit::problems::nodal_dirichlet;
 use cleave_virtualnode::{VirtualNodeMesh, box_surface};
 
 /// Registration of `cleave-virtualnode`: one variant, corotated linear tetrahedra on a BCC lattice.
@@ -92,15 +91,8 @@ impl CompareBackend for VirtualNodeBackend {
         }
         let mesh = VirtualNodeMesh::from_box(grid.origin, grid.max_corner(), grid.h, *material)
             .map_err(|e| BuildError(e.to_string()))?;
-        let prescribed = nodal_dirichlet(&mesh, dirichlet.region, dirichlet.value);
         let elements = mesh.num_duplicates();
-        Ok(BuiltProblem {
-            discretization: Box::new(mesh),
-            prescribed,
-            dirichlet_load: Vec::new(),
-            elements,
-            search_seconds: 0.0,
-        })
+        Ok(nodal_problem(Box::new(mesh), elements, dirichlet))
     }
 
     fn extreme_start(

@@ -8,9 +8,8 @@ use crate::backend::{
 use cleave_core::{Discretization, Material, Point3, Real};
 use cleave_testkit::compare::{
     BoxGrid, BuildError, BuiltProblem, CompareBackend, DirichletSpec, ExtremeCase, NotApplicable, corner_pushed_in,
-    stretch_start,
+    nodal_problem, stretch_start,
 };
-use cleave_testkit::problems::nodal_dirichlet;
 use cleave_voxel::VoxelMesh;
 
 /// Registration of `cleave-voxel`: one variant, trilinear cubes with the closed-form stiffness.
@@ -38,15 +37,8 @@ impl CompareBackend for VoxelBackend {
         }
         let mesh =
             VoxelMesh::from_box(*material, grid.origin, grid.h, grid.dims).map_err(|e| BuildError(e.to_string()))?;
-        let prescribed = nodal_dirichlet(&mesh, dirichlet.region, dirichlet.value);
         let elements = mesh.num_cubes();
-        Ok(BuiltProblem {
-            discretization: Box::new(mesh),
-            prescribed,
-            dirichlet_load: Vec::new(),
-            elements,
-            search_seconds: 0.0,
-        })
+        Ok(nodal_problem(Box::new(mesh), elements, dirichlet))
     }
 
     fn extreme_start(

@@ -142,7 +142,7 @@ pub struct Simulation {
 
 /// A timeline event ready to act: a fixed soup at a time, or a blade over a window.
 enum TimedCut {
-    Once { time: Real, soup: Vec<[Point3<Real>; 3]>, done: bool },
+    Once { time: Real, surface: Option<CutSurface> },
     Blade { start: Real, end: Real, blade: Blade },
 }
 
@@ -467,34 +467,40 @@ impl Simulation {
         &self.cuts
     }
 
-    /// The triangles every timeline event cuts at the start of the step from `t0` to `t1`: a
-    /// `Cut` once, at the first step that starts at or after its time; a blade, what it swept
-    /// over the part of its window inside this step.
-    fn due_cuts(&mut self, t0: Real, t1: Real) -> Vec<[Point3<Real>; 3]> {
-        let mut soup = Vec::new();
+    /// The surfaces the timeline cuts at the start of the step from `t0` to `t1`: a `Cut` once,
+    /// at the first step that starts at or after its time (a plane stays a plane: the backend
+    /// cuts it exactly, without the slivers a huge two-triangle stand-in leaves along its
+    /// diagonal); the blades' soups swept over their part of this step, as one soup.
+    fn due_cuts(&mut self, t0: Real, t1: Real) -> Vec<CutSurface> {
+        let mut due = Vec::new();
+        let mut swept = Vec::new();
         for event in &mut self.timeline {
             match event {
-                TimedCut::Once { time, soup: triangles, done } => {
-                    if !*done && *time <= t0 + 1e-9 {
-                        soup.append(triangles);
-                        *done = true;
+                TimedCut::Once { time, surface } => {
+                    if *time <= t0 + 1e-9
+                        && let Some(surface) = surface.take()
+                    {
+                        due.push(surface);
                     }
                 }
                 TimedCut::Blade { start, end, blade } => {
                     let (a, b) = (t0.max(*start), t1.min(*end));
                     if a < b || (a == b && a == *start) {
-                        soup.extend(blade.swept(a, b));
+                        swept.extend(blade.swept(a, b));
                     }
                 }
             }
         }
-        soup
+        if !swept.is_empty() {
+            due.push(CutSurface::Triangles(swept));
+        }
+        due
     }
 
     /// Applies a cut between steps: the backend cuts, the integrator carries the state across,
     /// pins, contact rows, probes and the render surface are resolved again, and the change is
     /// recorded as a `cut` event.
-    fn apply_cut(&mut self, soup: Vec<[Point3<Real>; 3]>) -> Result<(), SceneError> {
+    fn apply_cut(&mut self, surface: &CutSurface) -> Result<(), SceneError> {
         let clock = Instant::now();
         let build_error = |message: String| SceneError::Build { path: self.path.clone(), message };
         let before = (self.discretization.num_nodes(), self.discretization.num_frames(), self.cuts.pieces.len());
@@ -503,9 +509,8 @@ impl Simulation {
             .discretization
             .as_cuttable()
             .ok_or_else(|| build_error(format!("the {} backend cannot cut", self.info.backend)))?;
-        let change = cuttable
-            .cut(&CutSurface::Triangles(soup))
-            .map_err(|e| build_error(format!("cut at t = {} s: {e}", self.integrator.time())))?;
+        let change =
+            cuttable.cut(surface).map_err(|e| build_error(format!("cut at t = {} s: {e}", self.integrator.time())))?;
         if change.epoch == epoch {
             return Ok(());
         }
@@ -555,9 +560,8 @@ impl Simulation {
     /// Takes one step (applying the cuts due before it) and records it.
     pub fn step(&mut self) -> Result<StepReport, SceneError> {
         let t0 = self.integrator.time();
-        let soup = self.due_cuts(t0, t0 + self.integrator.settings().time_step);
-        if !soup.is_empty() {
-            self.apply_cut(soup)?;
+        for surface in self.due_cuts(t0, t0 + self.integrator.settings().time_step) {
+            self.apply_cut(&surface)?;
         }
         let report = self
             .integrator
@@ -592,8 +596,10 @@ fn prepare_timeline(events: &[EventSpec], scene: &Path) -> Result<Vec<TimedCut>,
     for (index, event) in events.iter().enumerate() {
         timeline.push(match event {
             EventSpec::Cut { time, surface } => {
-                let soup = match surface {
-                    CutSpec::Plane { point, normal } => plane_soup(Point3::from(*point), Vector3::from(normal.0)),
+                let surface = match surface {
+                    CutSpec::Plane { point, normal } => {
+                        CutSurface::Plane { point: Point3::from(*point), normal: Vector3::from(normal.0) }
+                    }
                     CutSpec::Obj { path: obj, transform } => {
                         let resolved = scene.parent().unwrap_or(Path::new(".")).join(obj);
                         let mesh_error = |message: String| SceneError::Mesh {
@@ -606,10 +612,12 @@ fn prepare_timeline(events: &[EventSpec], scene: &Path) -> Result<Vec<TimedCut>,
                         let mesh = TriangleMesh::from_obj_reader(&mut std::io::BufReader::new(file))
                             .map_err(|e| mesh_error(e.to_string()))?;
                         let mesh = mesh.transformed(|p| transform_point(transform, p));
-                        (0..mesh.triangles.len()).filter_map(|t| mesh.triangle_points(t)).collect()
+                        CutSurface::Triangles(
+                            (0..mesh.triangles.len()).filter_map(|t| mesh.triangle_points(t)).collect(),
+                        )
                     }
                 };
-                TimedCut::Once { time: *time, soup, done: false }
+                TimedCut::Once { time: *time, surface: Some(surface) }
             }
             EventSpec::Blade { start, end, polygon, path } => {
                 if !(start.is_finite() && end.is_finite() && start <= end) {
@@ -634,16 +642,6 @@ fn prepare_timeline(events: &[EventSpec], scene: &Path) -> Result<Vec<TimedCut>,
         });
     }
     Ok(timeline)
-}
-
-/// A plane as two triangles far larger than any scene (1e4 m), centred on `point`.
-fn plane_soup(point: Point3<Real>, normal: Vector3<Real>) -> Vec<[Point3<Real>; 3]> {
-    let n = normal.normalize();
-    let helper = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
-    let u = n.cross(&helper).normalize() * 1e4;
-    let v = n.cross(&u);
-    let corners = [point - u - v, point + u - v, point + u + v, point - u + v];
-    vec![[corners[0], corners[1], corners[2]], [corners[0], corners[2], corners[3]]]
 }
 
 /// Line and column in the scene file of a position (1-based) inside `inner`, a slice of the

@@ -108,6 +108,16 @@ impl ExtremeCase {
 #[derive(Clone, Debug, PartialEq)]
 pub struct NotApplicable(pub String);
 
+/// A built problem for a nodal backend: Dirichlet data pinned at the nodes in its region.
+pub fn nodal_problem(
+    discretization: Box<dyn Discretization>,
+    elements: usize,
+    dirichlet: &DirichletSpec,
+) -> BuiltProblem {
+    let prescribed = crate::problems::nodal_dirichlet(discretization.as_ref(), dirichlet.region, dirichlet.value);
+    BuiltProblem { discretization, prescribed, dirichlet_load: Vec::new(), elements, search_seconds: 0.0 }
+}
+
 /// The pre-inverted start of a nodal backend: the node at the box's outer corner (x, y, z
 /// maximal) moved by 1.5 h inwards along every axis, through the faces of the elements around it
 /// (for a cube, F at its centre is I − (9/8)·(1,1,1)⊗(1,1,1)/3 with det F = −1/8).
