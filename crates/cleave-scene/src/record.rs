@@ -191,6 +191,7 @@ impl Recorder {
     ) -> Result<(), RecordError> {
         use std::fmt::Write as _;
         let ns = nanoseconds(time);
+        let (mut float, mut integer) = (zmij::Buffer::new(), itoa::Buffer::new());
         let mut json = String::with_capacity(64 * points.len() + 32 * triangles.len() + 512);
         let _ = write!(
             json,
@@ -227,7 +228,13 @@ impl Recorder {
                         if used > 0 {
                             json.push(',');
                         }
-                        let _ = write!(json, r#"{{"x":{},"y":{},"z":{}}}"#, finite(p.x), finite(p.y), finite(p.z));
+                        json.push_str(r#"{"x":"#);
+                        json.push_str(float.format_finite(finite(p.x)));
+                        json.push_str(r#","y":"#);
+                        json.push_str(float.format_finite(finite(p.y)));
+                        json.push_str(r#","z":"#);
+                        json.push_str(float.format_finite(finite(p.z)));
+                        json.push('}');
                         used += 1;
                     }
                 }
@@ -243,7 +250,7 @@ impl Recorder {
                         json.push(',');
                     }
                     first = false;
-                    let _ = write!(json, "{}", local[v as usize]);
+                    json.push_str(integer.format(local[v as usize]));
                 }
             }
             json.push_str("]}");

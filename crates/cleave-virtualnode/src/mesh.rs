@@ -212,6 +212,24 @@ pub struct VirtualNodeMesh {
     lumping: MassLumping,
     /// Contiguous duplicate pairs across lattice faces: `(a, face of a, b, face of b)`.
     links: Vec<Link>,
+    /// The carved object's surface, kept for rendering triangles the cuts left whole.
+    source: SourceSurface,
+}
+
+/// The object surface a mesh was carved from, outward oriented, with the lattice tetrahedra
+/// (kept ones only) each triangle may meet: the render surface draws a triangle whole, without
+/// clipping it to tetrahedra, while no cut has touched any of them.
+#[derive(Debug, Default)]
+pub(crate) struct SourceSurface {
+    /// Non-degenerate triangles, counter-clockwise seen from outside.
+    pub triangles: Vec<[Point3<Real>; 3]>,
+    /// Kept lattice tetrahedra whose bounding box meets each triangle's.
+    pub tets_of_triangle: Vec<Vec<u32>>,
+    /// The inverse: triangles per kept lattice tetrahedron.
+    pub triangles_of_tet: Vec<Vec<u32>>,
+    /// Per kept lattice tetrahedron, the source triangle of each object-surface face of its
+    /// carved duplicates (cell and face order); valid while no cut has touched it.
+    pub face_sources: Vec<Vec<u32>>,
 }
 
 /// Two duplicates contiguous across a lattice face: `(a, face of a, b, face of b)`.
@@ -254,8 +272,12 @@ impl VirtualNodeMesh {
                 cube_tets.entry(cube).or_default().push(t as u32);
             }
         }
-        let triangles: Vec<[Point3<Real>; 3]> =
-            (0..surface.triangles.len()).filter_map(|t| surface.triangle_points(t)).collect();
+        // Outward orientation is what the render surface needs; the inside test does not care.
+        let inward = surface.signed_volume() < 0.0;
+        let triangles: Vec<[Point3<Real>; 3]> = (0..surface.triangles.len())
+            .filter_map(|t| surface.triangle_points(t))
+            .map(|[a, b, c]| if inward { [a, c, b] } else { [a, b, c] })
+            .collect();
         let mut tris_of_tet: Vec<Vec<u32>> = vec![Vec::new(); all.len()];
         for (i, tri) in triangles.iter().enumerate() {
             for t in candidate_tets(&lattice, &cube_tets, tri) {
@@ -342,6 +364,26 @@ impl VirtualNodeMesh {
                 }
             }
         }
+        let mut kept_index = vec![u32::MAX; all.len()];
+        for (k, &t) in kept.iter().enumerate() {
+            kept_index[t] = k as u32;
+        }
+        let mut source = SourceSurface {
+            tets_of_triangle: vec![Vec::new(); triangles.len()],
+            triangles_of_tet: vec![Vec::new(); kept.len()],
+            triangles: Vec::new(),
+            face_sources: Vec::new(),
+        };
+        for (t, tris) in tris_of_tet.iter().enumerate() {
+            if kept_index[t] == u32::MAX {
+                continue;
+            }
+            for &i in tris {
+                source.tets_of_triangle[i as usize].push(kept_index[t]);
+                source.triangles_of_tet[kept_index[t] as usize].push(i);
+            }
+        }
+        source.triangles = triangles;
         let mut carved = carved;
         let mut made = Vec::new();
         for (k, &t) in kept.iter().enumerate() {
@@ -370,8 +412,10 @@ impl VirtualNodeMesh {
             last_cut: CutStats::default(),
             lumping: MassLumping::default(),
             links: Vec::new(),
+            source,
         };
         mesh.rebuild_topology(None, None)?;
+        mesh.source.face_sources = (0..mesh.tets.len()).into_par_iter().map(|t| mesh.carved_face_sources(t)).collect();
         Ok(mesh)
     }
 
@@ -433,6 +477,26 @@ impl VirtualNodeMesh {
     /// Whether node copy `corner` of duplicate `d` is real (its region contains that corner).
     pub fn is_real_copy(&self, d: usize, corner: usize) -> bool {
         self.duplicates[d].cells.has_corner(corner)
+    }
+
+    /// The surface the mesh was carved from.
+    pub(crate) fn source(&self) -> &SourceSurface {
+        &self.source
+    }
+
+    /// Rest shape of lattice tetrahedron `t`.
+    pub(crate) fn tet_shape(&self, t: usize) -> &TetShape {
+        &self.tets[t].shape
+    }
+
+    /// Duplicates of lattice tetrahedron `t`.
+    pub(crate) fn duplicates_of_tet(&self, t: usize) -> &[u32] {
+        &self.dups_of_tet[t]
+    }
+
+    /// Lattice tetrahedron of duplicate `d`.
+    pub(crate) fn tet_of_duplicate(&self, d: usize) -> usize {
+        self.duplicates[d].tet as usize
     }
 
     /// Statistics of the last cut.

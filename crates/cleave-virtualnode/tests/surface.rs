@@ -1,35 +1,9 @@
-//! The render surface: every piece's surface is closed once its vertices are welded by rest
-//! position, encloses the piece's volume, and its original part has the object's area.
+//! The render surface: every piece's surface is closed by its own vertex indices (no welding
+//! by position), encloses the piece's volume, and its original part has the object's area.
 
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real, Vector3};
 use cleave_virtualnode::{SurfaceKind, VirtualNodeMesh};
 use std::collections::HashMap;
-
-/// Welds points closer than `tolerance` (grid hashing with a neighbour search).
-fn weld(points: &[Point3<Real>], tolerance: Real) -> Vec<usize> {
-    let key = |p: &Point3<Real>| -> [i64; 3] { std::array::from_fn(|a| (p[a] / tolerance).floor() as i64) };
-    let mut grid: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
-    let mut id = vec![0; points.len()];
-    for (i, p) in points.iter().enumerate() {
-        let k = key(p);
-        let mut found = None;
-        'search: for dx in -1..=1 {
-            for dy in -1..=1 {
-                for dz in -1..=1 {
-                    if let Some(list) = grid.get(&[k[0] + dx, k[1] + dy, k[2] + dz])
-                        && let Some(&j) = list.iter().find(|&&j| (points[j] - p).norm() <= tolerance)
-                    {
-                        found = Some(id[j]);
-                        break 'search;
-                    }
-                }
-            }
-        }
-        id[i] = found.unwrap_or(i);
-        grid.entry(k).or_default().push(i);
-    }
-    id
-}
 
 struct PieceReport {
     /// Directed edges whose reverse occurs a different number of times (boundary edges).
@@ -51,7 +25,10 @@ fn check_pieces(mesh: &VirtualNodeMesh) -> Vec<PieceReport> {
             piece_of_dup[d as usize] = k;
         }
     }
-    let welded = weld(&surface.positions, 1e-9 * mesh.lattice().h);
+    // Edges are matched by the surface's own vertex indices, with no welding by position: that
+    // is what a reader of the deformed surface sees, where two vertices at one rest position
+    // move apart unless they are one material point.
+    let welded: Vec<usize> = (0..surface.positions.len()).collect();
     let mut reports = Vec::new();
     for (k, piece) in pieces.iter().enumerate() {
         let mut directed: HashMap<(usize, usize), i64> = HashMap::new();
@@ -186,4 +163,44 @@ fn cut_area_of_an_axis_plane_is_twice_the_cross_section() {
     assert_eq!(mesh.pieces().len(), 4);
     assert!((area[1] - cut).abs() < 1e-12 * cut);
     assert!((area[0] - 2.0 * (x * y + y * z + z * x)).abs() < 1e-12);
+}
+
+#[test]
+fn triangles_no_cut_touched_are_drawn_whole() {
+    // The carved box's surface is its 12 triangles as they are (box_surface has 12), not their
+    // pieces clipped to each lattice tetrahedron.
+    let mut mesh = block();
+    let s = mesh.render_surface();
+    assert_eq!(s.triangles.len(), 12);
+    // A cut through one corner clips only the triangles whose tetrahedra it touches. The far
+    // faces (x = 0.731, y = 0.05) stay whole: points where the clipped neighbours' pieces meet
+    // their edges are inserted there (no T-junction), but no vertex lies inside them apart from
+    // the centre each fanned triangle gets (a clipped face would have one per tet face crossed).
+    mesh.cut(&CutSurface::Plane { point: Point3::new(0.1, -0.3, 0.0), normal: Vector3::new(1.0, 1.0, 0.0) }).unwrap();
+    let s = mesh.render_surface();
+    let interior_vertices = |axis: usize, value: Real| {
+        let (lo, hi) = ([0.013, -0.37, 0.2], [0.731, 0.05, 0.66]);
+        let mut inside: Vec<u32> = s
+            .triangles
+            .iter()
+            .filter(|t| t.iter().all(|&v| (s.positions[v as usize][axis] - value).abs() < 1e-12))
+            .flatten()
+            .copied()
+            .filter(|&v| {
+                let p = s.positions[v as usize];
+                (0..3).filter(|&a| a != axis).all(|a| p[a] > lo[a] + 1e-9 && p[a] < hi[a] - 1e-9)
+            })
+            .collect();
+        inside.sort_unstable();
+        inside.dedup();
+        inside.len()
+    };
+    let (far_x, far_y, cut_side) =
+        (interior_vertices(0, 0.731), interior_vertices(1, 0.05), interior_vertices(2, 0.66));
+    println!(
+        "after the corner cut: {} triangles; interior vertices: x = 0.731 face {far_x}, y = 0.05 face {far_y}, z = 0.66 face {cut_side}",
+        s.triangles.len()
+    );
+    assert!(far_x <= 2 && far_y <= 2);
+    assert!(cut_side > 10, "the face the cut crosses is clipped");
 }
