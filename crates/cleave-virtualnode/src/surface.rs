@@ -100,11 +100,14 @@ fn closest_on_triangle(p: &Point3<Real>, t: &[Point3<Real>; 3]) -> Point3<Real> 
 /// [`ZERO_WEIGHT`]) within `tolerance` of the same rest position. Positions of one point
 /// computed in two arrangements (or as a source triangle's corner) differ by rounding, so an
 /// exact key alone would leave hairline cracks; the exact key is the fast path.
+/// A vertex made by the welder: rest position, its nodes (see [`ZERO_WEIGHT`]), its index.
+type WeldedVertex = (Point3<Real>, [u32; 4], u32);
+
 struct Welder {
     tolerance: Real,
     cell: Real,
     exact: HashMap<([u64; 3], [u32; 4]), u32>,
-    grid: HashMap<[i64; 3], Vec<(Point3<Real>, [u32; 4], u32)>>,
+    grid: HashMap<[i64; 3], Vec<WeldedVertex>>,
 }
 
 impl Welder {
