@@ -63,6 +63,7 @@ fn bunny_step(c: &mut Criterion) {
                     normal: Vector3::z(),
                     stiffness: 2e4,
                     damping: 20.0,
+                    friction: 0.0,
                 }],
                 ..Default::default()
             };

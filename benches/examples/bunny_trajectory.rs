@@ -84,6 +84,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             normal: Vector3::z(),
             stiffness: args.stiffness,
             damping: args.damping,
+            friction: 0.0,
         }],
         ..Default::default()
     };

@@ -35,7 +35,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     settings.preconditioner = Preconditioner::BlockJacobi;
     let constraints = Constraints {
         contact_points: Some(contact),
-        planes: vec![PlaneCollider { point: Point3::origin(), normal: Vector3::z(), stiffness: 2e4, damping: 20.0 }],
+        planes: vec![PlaneCollider {
+            point: Point3::origin(),
+            normal: Vector3::z(),
+            stiffness: 2e4,
+            damping: 20.0,
+            friction: 0.0,
+        }],
         ..Default::default()
     };
     let mut integrator = Integrator::new(&mesh, settings, constraints)?;

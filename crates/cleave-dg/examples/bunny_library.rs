@@ -28,7 +28,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let surface = dg.embed_surface(&mesh.vertices)?;
     let constraints = Constraints {
         contact_points: Some(surface.clone()),
-        planes: vec![PlaneCollider { point: Point3::origin(), normal: Vector3::z(), stiffness: 2e5, damping: 0.0 }],
+        planes: vec![PlaneCollider {
+            point: Point3::origin(),
+            normal: Vector3::z(),
+            stiffness: 2e5,
+            damping: 0.0,
+            friction: 0.0,
+        }],
         ..Default::default()
     };
     let mut settings = Settings::new(1.0 / 240.0);

@@ -7,7 +7,8 @@
 //!   and outward oriented, returning [`MeshStats`].
 //! - [`TriangleMesh::winding_number`] / [`TriangleMesh::contains`] and the accelerated
 //!   [`InsideTester`] (module `inside`).
-//! - [`triangle_aabb_overlap`] (module `overlap`).
+//! - [`triangle_aabb_overlap`] (module `overlap`); [`closest_point_on_triangle`] (module
+//!   `closest`).
 //! - [`voxelize`] producing a [`VoxelGrid`] (module `voxelize`), following Müller et al.
 //!   2004, §2.1.
 //! - [`hex_slice`] producing a [`HexSlicing`] (module `hex_slice`): a closed surface sliced by
@@ -25,6 +26,7 @@
 //! [`GeometryError`] values naming the offending triangle, edge, vertex or OBJ line.
 
 mod blade;
+mod closest;
 mod error;
 mod hex_slice;
 mod inside;
@@ -39,6 +41,7 @@ mod validate;
 mod voxelize;
 
 pub use blade::{Blade, BladeError, Keyframe};
+pub use closest::closest_point_on_triangle;
 pub use error::GeometryError;
 pub use hex_slice::{
     DEFAULT_MERGE_BELOW, GRID_MARGIN, HexSliceOptions, HexSlicing, MAX_SLICE_CELLS, MIN_FACE_AREA, hex_slice,

@@ -10,6 +10,7 @@
 
 use crate::cg::CgWorkspace;
 use crate::constraints::Constraints;
+use crate::contact::{self, ContactSet, ContactStats};
 use crate::error::{StepError, StepErrorKind};
 use crate::system::AssembledSystem;
 use crate::two_level::TwoLevel;
@@ -97,6 +98,11 @@ pub struct PhaseSeconds {
     pub solve: Real,
     /// Everything else (update, energies, checks).
     pub rest: Real,
+    /// Finding contacts (part of `assembly`).
+    pub contact: Real,
+    /// Growing the pattern and its symbolic factorization for new surface contacts (part of
+    /// `assembly`; zero in most steps).
+    pub pattern: Real,
 }
 
 impl PhaseSeconds {
@@ -129,8 +135,10 @@ pub struct StepReport {
     pub penalty_energy: Real,
     /// Elements with `det F ≤ 0`.
     pub inverted_elements: usize,
-    /// Contact points in contact.
+    /// Contact points in contact (all kinds).
     pub active_contacts: usize,
+    /// Active contacts per kind, deepest penetration and the time spent finding contacts.
+    pub contacts: ContactStats,
 }
 
 impl StepReport {
@@ -147,7 +155,7 @@ struct Workspace {
     force: Vec<Real>,
     scratch: Vec<Real>,
     preconditioner: Vec<Matrix3<Real>>,
-    contact_depth: Vec<Real>,
+    contacts: ContactSet,
     cg: CgWorkspace,
 }
 
@@ -168,6 +176,10 @@ pub struct Integrator {
     two_level: Option<TwoLevel>,
     work: Workspace,
     last_inverted: usize,
+    /// Node groups of surface contacts seen in this epoch, added to the pattern.
+    contact_couplings: Vec<Vec<u32>>,
+    /// Times the pattern grew for new surface contacts (whole run).
+    pattern_growths: u64,
 }
 
 impl Integrator {
@@ -195,6 +207,8 @@ impl Integrator {
             two_level: None,
             work: Workspace::default(),
             last_inverted: 0,
+            contact_couplings: Vec::new(),
+            pattern_growths: 0,
         };
         integrator.rebuild(discretization).map_err(|kind| StepError { step: 0, kind })?;
         Ok(integrator)
@@ -228,6 +242,7 @@ impl Integrator {
             self.pinned[d] = true;
         }
         self.check_embeddings(discretization.num_nodes())?;
+        self.contact_couplings.clear();
         let rest = discretization.rest_dofs();
         let (mut lo, mut hi) = (Point3::from([Real::MAX; 3]), Point3::from([Real::MIN; 3]));
         for p in rest.chunks_exact(3) {
@@ -242,7 +257,12 @@ impl Integrator {
             Solver::ConjugateGradient { assembled, .. } => assembled && discretization.wants_assembly(),
         };
         self.system = if needs_assembly {
-            Some(AssembledSystem::new(discretization, &self.constraints, self.settings.solver == Solver::Cholesky)?)
+            Some(AssembledSystem::new(
+                discretization,
+                &self.constraints,
+                &self.contact_couplings,
+                self.settings.solver == Solver::Cholesky,
+            )?)
         } else {
             None
         };
@@ -266,8 +286,12 @@ impl Integrator {
         self.work.force = vec![0.0; n];
         self.work.scratch = vec![0.0; n];
         self.work.preconditioner = vec![Matrix3::zeros(); discretization.num_nodes()];
-        let contacts = self.constraints.contact_points.as_ref().map_or(0, |c| c.len());
-        self.work.contact_depth = vec![0.0; contacts * self.constraints.planes.len()];
+        self.work.contacts = ContactSet::new(&self.constraints, discretization.rest_dofs());
+        if self.constraints.has_contact() {
+            // The penetrating pairs of the current state, so that its penalty energy is known
+            // before the next step finds its own pairs (energy is a function of the state).
+            self.work.contacts.detect(&self.constraints, &self.x, &self.v, 0.0, &Vector3::zeros());
+        }
         self.epoch = discretization.epoch();
         Ok(())
     }
@@ -372,6 +396,11 @@ impl Integrator {
         self.system.as_ref().map(|s| (s.pattern.nnz(), s.factor_nnz()))
     }
 
+    /// Times the assembled pattern grew for surface contacts between nodes it did not couple.
+    pub fn pattern_growths(&self) -> u64 {
+        self.pattern_growths
+    }
+
     /// Coarse DOFs and nonzeros of the coarse Cholesky factor, if the two-level preconditioner
     /// is active.
     pub fn coarse_stats(&self) -> Option<(usize, usize)> {
@@ -395,19 +424,14 @@ impl Integrator {
         report
     }
 
-    fn penalty_energy(&self) -> (Real, usize) {
+    /// Penalty energy of the pins and of the contact pairs the last step acted on, at the
+    /// current state (pairs keep their normal and barycentric point; a pair that separated
+    /// contributes nothing).
+    fn penalty_energy(&mut self) -> (Real, usize) {
         let mut energy = 0.0;
         let mut active = 0;
-        if let Some(points) = &self.constraints.contact_points {
-            for plane in &self.constraints.planes {
-                for i in 0..points.len() {
-                    let depth = plane.normal.dot(&(points.point(&self.x, i) - plane.point));
-                    if depth < 0.0 {
-                        energy += 0.5 * plane.stiffness * depth * depth;
-                        active += 1;
-                    }
-                }
-            }
+        if let Some(points) = self.constraints.contact_points.as_ref().filter(|_| self.constraints.has_contact()) {
+            (energy, active) = contact::energy(points, &self.work.contacts.contacts, &self.x);
         }
         if let Some(pins) = &self.constraints.penalty_pins {
             for (i, target) in pins.targets.iter().enumerate() {
@@ -444,6 +468,11 @@ impl Integrator {
         force.copy_from_slice(&self.external_force);
         discretization.add_internal_force(&self.rotations, &self.x, force);
         mass.apply(&self.v, rhs);
+        let contact_clock = Instant::now();
+        if self.constraints.has_contact() {
+            self.work.contacts.detect(&self.constraints, &self.x, &self.v, h, &self.settings.gravity);
+        }
+        seconds.contact = contact_clock.elapsed().as_secs_f64();
         self.add_penalty_forces();
         let Workspace { rhs, force, .. } = &mut self.work;
         rhs.par_iter_mut().zip(&*force).for_each(|(r, f)| *r += h * f);
@@ -452,9 +481,30 @@ impl Integrator {
                 *r = 0.0;
             }
         }
+        if let Some(system) = &self.system
+            && self.constraints.surface_contact.is_some()
+            && let Some(points) = &self.constraints.contact_points
+        {
+            // A point and a surface triangle that were never in contact in this epoch couple
+            // nodes the pattern lacks: grow the pattern (a new symbolic factorization), keeping
+            // every coupling seen so far, so contacts that persist cost nothing more.
+            let missing = contact::missing_couplings(points, &self.work.contacts, &system.pattern);
+            if !missing.is_empty() {
+                let clock = Instant::now();
+                self.contact_couplings.extend(missing);
+                self.system = Some(AssembledSystem::new(
+                    discretization,
+                    &self.constraints,
+                    &self.contact_couplings,
+                    self.settings.solver == Solver::Cholesky,
+                )?);
+                self.pattern_growths += 1;
+                seconds.pattern = clock.elapsed().as_secs_f64();
+            }
+        }
         if let Some(system) = &mut self.system {
             system.fill(discretization, &self.rotations, mass_scale, stiffness_scale);
-            Self::add_penalty_matrix(&self.constraints, &self.work.contact_depth, h, system);
+            Self::add_penalty_matrix(&self.constraints, &self.work.contacts, h, system);
             system.apply_pins();
         }
         seconds.assembly = clock.elapsed().as_secs_f64();
@@ -478,8 +528,9 @@ impl Integrator {
                 }
                 let pinned = &self.pinned;
                 let rotations = &self.rotations;
-                let constraints = &self.constraints;
-                let depth = &self.work.contact_depth;
+                let contact_points = self.constraints.contact_points.as_ref();
+                let contacts = &self.work.contacts.contacts;
+                let penalty_pins = self.constraints.penalty_pins.as_ref();
                 let system = &self.system;
                 let preconditioner = &self.work.preconditioner;
                 let mut two_level = self.two_level.as_mut();
@@ -487,14 +538,19 @@ impl Integrator {
                 let load_scale = h * self.external_force.iter().map(|f| f * f).sum::<Real>().sqrt();
                 let outcome = self.work.cg.solve(
                     |p, out| match system {
-                        Some(s) => s.pattern.mul_vec(&s.values, p, out),
+                        Some(s) => {
+                            s.pattern.mul_vec(&s.values, p, out);
+                        }
                         None => {
                             mass.apply(p, out);
                             if mass_scale != 1.0 {
                                 out.iter_mut().for_each(|o| *o *= mass_scale);
                             }
                             discretization.add_stiffness_action(rotations, p, stiffness_scale, out);
-                            add_penalty_action(constraints, depth, h, p, out);
+                            if let Some(points) = contact_points {
+                                contact::add_action(points, contacts, p, out);
+                            }
+                            add_pin_action(penalty_pins, h, p, out);
                             for (o, &pin) in out.iter_mut().zip(pinned) {
                                 if pin {
                                     *o = 0.0;
@@ -534,6 +590,9 @@ impl Integrator {
         if let Some(dof) = self.v.iter().position(|v| !v.is_finite()) {
             return Err(StepErrorKind::NotFinite { dof });
         }
+        if let Some(points) = self.constraints.contact_points.as_ref().filter(|_| self.constraints.has_contact()) {
+            self.work.contacts.store_normal_forces(points, &self.v, h);
+        }
         self.x.par_iter_mut().zip(&self.v).for_each(|(x, v)| *x += h * v);
         let rest = discretization.rest_dofs();
         let distance = self
@@ -558,6 +617,7 @@ impl Integrator {
         report.step = self.step - 1;
         report.iterations = iterations;
         report.residual = residual;
+        report.contacts = ContactStats { seconds: seconds.contact, ..self.work.contacts.stats() };
         seconds.rest = rest_seconds + clock.elapsed().as_secs_f64();
         report.seconds = seconds;
         if !report.total_energy().is_finite() {
@@ -566,43 +626,22 @@ impl Integrator {
         Ok(report)
     }
 
-    /// Adds penalty forces at `x` to `work.force` and records which contacts are active.
+    /// Adds contact forces (found by [`ContactSet::detect`] at the start of the step) and
+    /// penalty-pin forces at `x` to `work.force`.
     ///
-    /// A contact is active when its point is below the plane at `x` or would be at
-    /// `x + h (v + h g)` (gravity only for points not moving away from the plane): a point 2.4 m/s fast moves 4 cm in a 1/60 s step, so testing `x` alone
-    /// lets it sink a whole step's travel before the penalty sees it; and a body placed at rest
-    /// on the plane would otherwise fall freely for its first step (h² g = 2.7 mm at 1/60 s) onto
-    /// thousands of contact points at once (a 70× energy spike on the cut bunny's dense surface). An active contact gets the linearized force
-    /// `−k (min(d, 0) + h n·v⁺) n` (the `h² k` matrix term supplies the `v⁺` part). A point still
-    /// above the plane (`d > 0`) only has its approach stopped: the consistent `−k d` would pull
-    /// it down onto the plane, and points at the edge of a resting contact patch, flickering in
-    /// and out of the active set, would pump energy into the body through it.
-    /// `work.contact_depth` holds `min(d, d + h n·v)`: negative exactly when active.
+    /// A contact is active when its point is below the surface at `x` or would be at
+    /// `x + h (v + h g)` (gravity only for points not moving away): a point 2.4 m/s fast moves
+    /// 4 cm in a 1/60 s step, so testing `x` alone lets it sink a whole step's travel before the
+    /// penalty sees it; and a body placed at rest on a plane would otherwise fall freely for its
+    /// first step onto thousands of contact points at once. An active contact gets the
+    /// linearized force `−k (min(d, 0) + h n·v⁺) n` (the `h² k` matrix term supplies the `v⁺`
+    /// part). A point still above the surface (`d > 0`) only has its approach stopped: the
+    /// consistent `−k d` would pull it down, and points at the edge of a resting patch,
+    /// flickering in and out of the active set, would pump energy into the body through it.
     fn add_penalty_forces(&mut self) {
         let force = &mut self.work.force;
-        let h = self.settings.time_step;
         if let Some(points) = &self.constraints.contact_points {
-            for (p_index, plane) in self.constraints.planes.iter().enumerate() {
-                for i in 0..points.len() {
-                    let depth = plane.normal.dot(&(points.point(&self.x, i) - plane.point));
-                    // Gravity joins the prediction only for a point not moving away, so a
-                    // body resting on the plane is held from its first step while a point
-                    // leaving it (a hop) is let go.
-                    let approach = plane.normal.dot(&points.point(&self.v, i).coords);
-                    let pulled = approach + h * plane.normal.dot(&self.settings.gravity);
-                    let predicted = depth + h * if approach <= 0.0 { pulled } else { approach };
-                    self.work.contact_depth[p_index * points.len() + i] = depth.min(predicted);
-                    if depth.min(predicted) < 0.0 {
-                        let f = plane.normal * (-plane.stiffness * depth.min(0.0));
-                        let (nodes, weights) = points.row(i);
-                        for (&n, &w) in nodes.iter().zip(weights) {
-                            for a in 0..3 {
-                                force[3 * n as usize + a] += w * f[a];
-                            }
-                        }
-                    }
-                }
-            }
+            contact::add_forces(points, &self.work.contacts.contacts, force);
         }
         if let Some(pins) = &self.constraints.penalty_pins {
             for (i, target) in pins.targets.iter().enumerate() {
@@ -617,17 +656,11 @@ impl Integrator {
         }
     }
 
-    /// Adds `h² K_c + h C_c` of active contacts and `h² k I` of penalty pins to the matrix.
-    fn add_penalty_matrix(constraints: &Constraints, depth: &[Real], h: Real, system: &mut AssembledSystem) {
+    /// Adds the within-side blocks of the active contacts and `h² k I` of penalty pins to the
+    /// matrix.
+    fn add_penalty_matrix(constraints: &Constraints, contacts: &ContactSet, h: Real, system: &mut AssembledSystem) {
         if let Some(points) = &constraints.contact_points {
-            for (p_index, plane) in constraints.planes.iter().enumerate() {
-                let nn = plane.normal * plane.normal.transpose() * (h * h * plane.stiffness + h * plane.damping);
-                for i in 0..points.len() {
-                    if depth[p_index * points.len() + i] < 0.0 {
-                        system.contact_ranks.add_row(points, i, &nn, &system.pattern, &mut system.values);
-                    }
-                }
-            }
+            contact::add_matrix(points, contacts, &system.pattern, &mut system.values);
         }
         if let Some(pins) = &constraints.penalty_pins {
             let k = Matrix3::identity() * (h * h * pins.stiffness);
@@ -650,17 +683,7 @@ impl Integrator {
         discretization.blocks().add_diagonal_blocks(&self.rotations, stiffness_scale, blocks);
         let mass = discretization.mass().diagonal();
         if let Some(points) = &self.constraints.contact_points {
-            for (p_index, plane) in self.constraints.planes.iter().enumerate() {
-                let nn = plane.normal * plane.normal.transpose() * (h * h * plane.stiffness + h * plane.damping);
-                for i in 0..points.len() {
-                    if self.work.contact_depth[p_index * points.len() + i] < 0.0 {
-                        let (nodes, weights) = points.row(i);
-                        for (&n, &w) in nodes.iter().zip(weights) {
-                            blocks[n as usize] += nn * (w * w);
-                        }
-                    }
-                }
-            }
+            contact::add_diagonal_blocks(points, &self.work.contacts.contacts, blocks);
         }
         if let Some(pins) = &self.constraints.penalty_pins {
             for i in 0..pins.points.len() {
@@ -691,25 +714,9 @@ impl Integrator {
     }
 }
 
-/// `out += (h² K_c + h C_c) p` for active contacts and `h² k p` for penalty pins (matrix-free).
-fn add_penalty_action(constraints: &Constraints, depth: &[Real], h: Real, p: &[Real], out: &mut [Real]) {
-    if let Some(points) = &constraints.contact_points {
-        for (p_index, plane) in constraints.planes.iter().enumerate() {
-            let coefficient = h * h * plane.stiffness + h * plane.damping;
-            for i in 0..points.len() {
-                if depth[p_index * points.len() + i] < 0.0 {
-                    let value = plane.normal.dot(&points.point(p, i).coords) * coefficient;
-                    let (nodes, weights) = points.row(i);
-                    for (&n, &w) in nodes.iter().zip(weights) {
-                        for a in 0..3 {
-                            out[3 * n as usize + a] += w * value * plane.normal[a];
-                        }
-                    }
-                }
-            }
-        }
-    }
-    if let Some(pins) = &constraints.penalty_pins {
+/// `out += h² k p` for penalty pins (matrix-free).
+fn add_pin_action(pins: Option<&crate::constraints::PenaltyPins>, h: Real, p: &[Real], out: &mut [Real]) {
+    if let Some(pins) = pins {
         let coefficient = h * h * pins.stiffness;
         for i in 0..pins.points.len() {
             let q = pins.points.point(p, i).coords * coefficient;

@@ -5,13 +5,15 @@
 
 mod cg;
 mod constraints;
+mod contact;
 mod error;
 mod integrator;
 mod statics;
 mod system;
 mod two_level;
 
-pub use constraints::{Constraints, PenaltyPins, PlaneCollider};
+pub use constraints::{Constraints, MeshCollider, MeshColliderError, PenaltyPins, PlaneCollider, SurfaceContact};
+pub use contact::{ContactKind, ContactStats, FRICTION_SLIP_SPEED};
 pub use error::{StepError, StepErrorKind};
 pub use integrator::{AUTO_COARSE_DOFS, Integrator, PhaseSeconds, Preconditioner, Settings, Solver, StepReport};
 pub use statics::{StaticSolution, solve_static};

@@ -1,4 +1,4 @@
-//! The assembled system path: the sparsity pattern, block and penalty-row ranks, pinned-entry
+//! The assembled system path: the sparsity pattern, block and pin-row ranks, pinned-entry
 //! positions and the Cholesky symbolic factorization, all built once per epoch; per step only
 //! values are written and refactorized.
 
@@ -54,7 +54,6 @@ pub(crate) struct AssembledSystem {
     pub pattern: AssemblyPattern,
     pub block_ranks: BlockRanks,
     pub pin_ranks: RowRanks,
-    pub contact_ranks: RowRanks,
     pub values: Vec<Real>,
     /// Positions of entries in a pinned row or column (zeroed) and of pinned diagonals (set to 1).
     pinned_off_diagonal: Vec<usize>,
@@ -66,20 +65,18 @@ impl AssembledSystem {
     pub(crate) fn new(
         discretization: &dyn Discretization,
         constraints: &Constraints,
+        contact_couplings: &[Vec<u32>],
         with_cholesky: bool,
     ) -> Result<Self, StepErrorKind> {
         let blocks = discretization.blocks();
+        let coupling = constraints.coupling_groups();
         let pattern = AssemblyPattern::from_groups(
             discretization.num_nodes(),
-            blocks.node_groups().chain(constraints.coupling_groups()),
+            blocks.node_groups().chain(coupling.iter().chain(contact_couplings).map(Vec::as_slice)),
         );
         let block_ranks = BlockRanks::new(blocks, &pattern);
         let pin_ranks =
             constraints.penalty_pins.as_ref().map_or_else(RowRanks::default, |p| RowRanks::new(&p.points, &pattern));
-        let contact_ranks = match &constraints.contact_points {
-            Some(points) if !constraints.planes.is_empty() => RowRanks::new(points, &pattern),
-            _ => RowRanks::default(),
-        };
         let dim = pattern.dim();
         let mut pinned = vec![false; dim];
         for &d in &constraints.pinned_dofs {
@@ -102,16 +99,7 @@ impl AssembledSystem {
         }
         let cholesky = if with_cholesky { Some(SparseCholesky::new(&pattern)?) } else { None };
         let values = pattern.new_values();
-        Ok(Self {
-            pattern,
-            block_ranks,
-            pin_ranks,
-            contact_ranks,
-            values,
-            pinned_off_diagonal,
-            pinned_diagonal,
-            cholesky,
-        })
+        Ok(Self { pattern, block_ranks, pin_ranks, values, pinned_off_diagonal, pinned_diagonal, cholesky })
     }
 
     /// Number of nonzeros of the factor, if factorized.

@@ -113,7 +113,13 @@ fn integrator_refuses_bad_constraints_with_named_values() {
     let mut outside = Embedding::new();
     outside.push_row(&[0], &[1.0]);
     outside.push_row(&[1, 2], &[0.5, 0.5]);
-    let plane = PlaneCollider { point: Point3::origin(), normal: nalgebra::Vector3::z(), stiffness: 1e3, damping: 0.0 };
+    let plane = PlaneCollider {
+        point: Point3::origin(),
+        normal: nalgebra::Vector3::z(),
+        stiffness: 1e3,
+        damping: 0.0,
+        friction: 0.0,
+    };
     let error = build(Constraints { contact_points: Some(outside.clone()), planes: vec![plane], ..Default::default() })
         .unwrap();
     assert_eq!(error.kind, StepErrorKind::NodeOutOfRange { what: "contact point", row: 1, node: 2, nodes: 2 });

@@ -1,10 +1,14 @@
 //! Loading a scene file, building what it names, stepping it and recording every step.
 
 use crate::record::{RecordError, Recorder};
-use crate::schema::{ColliderSpec, CutSpec, EventSpec, Object, PinSpec, Scene, SolverSpec, Transform};
+use crate::schema::{
+    ColliderSpec, ContactSpec, CutSpec, EventSpec, Object, PinSpec, Positive, Scene, SolverSpec, Transform,
+};
 use cleave_core::{CutSurface, Discretization, Embedding, Piece, Point3, Real, Vector3};
 use cleave_geometry::{Blade, Keyframe, TriangleMesh};
-use cleave_integrator::{Constraints, Integrator, PlaneCollider, Settings, Solver, StepError, StepReport};
+use cleave_integrator::{
+    Constraints, Integrator, MeshCollider, PlaneCollider, Settings, Solver, StepError, StepReport, SurfaceContact,
+};
 use cleave_registry::{Backend, BackendError, Region, Shape, SolidRequest};
 use nalgebra::{Rotation3, UnitQuaternion};
 use serde_json::json;
@@ -132,7 +136,8 @@ pub struct Simulation {
     info: BuildInfo,
     registration: Box<dyn Backend>,
     pins: Vec<Region>,
-    planes: Vec<PlaneCollider>,
+    /// Contact constraints kept across cuts (the surface contact's triangles are replaced).
+    contact: Constraints,
     probe_points: Vec<Point3<Real>>,
     surface_on_cut: Vec<bool>,
     surface_piece: Vec<u32>,
@@ -280,6 +285,7 @@ impl Simulation {
         let mut surface_on_cut = vec![false; surface_triangles.len()];
         let mut surface_piece = Vec::new();
         let cut_surface = discretization.as_cuttable().and_then(|c| c.surface());
+        let cut_surface_present = cut_surface.is_some();
         let info = BuildInfo {
             backend: discretization.name().to_string(),
             elements: element_count,
@@ -305,21 +311,90 @@ impl Simulation {
         let probe_points: Vec<Point3<Real>> = scene.probes.iter().map(|p| Point3::from(p.position)).collect();
         let probes = discretization.embed(&probe_points).map_err(|e| build_error(format!("probe: {e}")))?;
 
-        for collider in &scene.colliders {
-            let ColliderSpec::Plane { point, normal, stiffness, damping } = collider;
-            constraints.planes.push(PlaneCollider {
-                point: Point3::from(*point),
-                normal: Vector3::from(normal.0),
-                stiffness: stiffness.0,
-                damping: damping.max(0.0),
+        let nonnegative = |what: &str, value: Real| {
+            if value.is_finite() && value >= 0.0 {
+                Ok(value)
+            } else {
+                Err(build_error(format!("{what} must be finite and non-negative, got {value}")))
+            }
+        };
+        for (index, collider) in scene.colliders.iter().enumerate() {
+            match collider {
+                ColliderSpec::Plane { point, normal, stiffness, damping, friction } => {
+                    constraints.planes.push(PlaneCollider {
+                        point: Point3::from(*point),
+                        normal: Vector3::from(normal.0),
+                        stiffness: stiffness.0,
+                        damping: damping.max(0.0),
+                        friction: nonnegative(&format!("colliders[{index}].friction"), *friction)?,
+                    });
+                }
+                ColliderSpec::Mesh { path: obj, transform, stiffness, damping, friction, reach } => {
+                    let mesh = load_obj(&path, obj, transform, &format!("colliders[{index}]"))?;
+                    let reach = nonnegative(
+                        &format!("colliders[{index}].reach"),
+                        reach.unwrap_or(DEFAULT_REACH * element_size),
+                    )?;
+                    let collider = MeshCollider::new(
+                        mesh.vertices.clone(),
+                        mesh.triangles.clone(),
+                        stiffness.0,
+                        damping.max(0.0),
+                        nonnegative(&format!("colliders[{index}].friction"), *friction)?,
+                        reach,
+                    )
+                    .map_err(|e| SceneError::Mesh {
+                        scene: path.clone(),
+                        mesh: path.parent().unwrap_or(Path::new(".")).join(obj),
+                        message: format!("colliders[{index}]: {e}"),
+                    })?;
+                    constraints.meshes.push(collider);
+                }
+            }
+        }
+        // Surface contact: on by default for a body that cuts (its pieces must not pass through
+        // each other), with the first collider's stiffness and damping.
+        let first_collider = scene.colliders.first().map(|c| match c {
+            ColliderSpec::Plane { stiffness, damping, .. } | ColliderSpec::Mesh { stiffness, damping, .. } => {
+                (stiffness.0, damping.max(0.0))
+            }
+        });
+        let contact_spec = match &scene.contact {
+            Some(explicit) => explicit.clone(),
+            None if cut_surface_present => {
+                let (stiffness, damping) = first_collider.unwrap_or((DEFAULT_CONTACT_STIFFNESS, 0.0));
+                Some(ContactSpec {
+                    stiffness: Positive(stiffness),
+                    damping,
+                    friction: 0.5,
+                    thickness: 0.0,
+                    reach: None,
+                })
+            }
+            None => None,
+        };
+        if let Some(spec) = contact_spec {
+            constraints.surface_contact = Some(SurfaceContact {
+                triangles: surface_triangles.clone(),
+                on_cut: surface_on_cut.clone(),
+                stiffness: spec.stiffness.0,
+                damping: nonnegative("contact.damping", spec.damping)?,
+                friction: nonnegative("contact.friction", spec.friction)?,
+                thickness: nonnegative("contact.thickness", spec.thickness)?,
+                reach: nonnegative("contact.reach", spec.reach.unwrap_or(DEFAULT_REACH * element_size))?,
             });
         }
-        if !constraints.planes.is_empty() {
+        if !constraints.planes.is_empty() || !constraints.meshes.is_empty() || constraints.surface_contact.is_some() {
             constraints.contact_points = Some(surface_points.clone());
         }
 
         let timeline = prepare_timeline(&scene.timeline, &path)?;
-        let planes = constraints.planes.clone();
+        let contact = Constraints {
+            planes: constraints.planes.clone(),
+            meshes: constraints.meshes.clone(),
+            surface_contact: constraints.surface_contact.clone(),
+            ..Default::default()
+        };
         let pieces = discretization.as_cuttable().map(|c| c.pieces()).unwrap_or_default();
         let cuts = CutSummary {
             initial: (pieces.iter().map(|p| p.volume).sum(), pieces.iter().map(|p| p.mass).sum()),
@@ -362,7 +437,7 @@ impl Simulation {
             info: BuildInfo { seconds: clock.elapsed().as_secs_f64(), ..info },
             registration,
             pins,
-            planes,
+            contact,
             probe_points,
             surface_on_cut,
             surface_piece,
@@ -447,7 +522,10 @@ impl Simulation {
             "time": self.integrator.time(),
             "iterations": report.iterations,
             "residual": report.residual,
-            "seconds": { "rotations": s.rotations, "assembly": s.assembly, "solve": s.solve, "rest": s.rest, "total": s.total() },
+            "seconds": {
+                "rotations": s.rotations, "assembly": s.assembly, "solve": s.solve, "rest": s.rest, "total": s.total(),
+                "contact": s.contact, "pattern": s.pattern,
+            },
             "energy": {
                 "kinetic": report.kinetic_energy, "elastic": report.elastic_energy,
                 "gravitational": report.gravitational_energy, "penalty": report.penalty_energy,
@@ -455,6 +533,11 @@ impl Simulation {
             },
             "inverted_elements": report.inverted_elements,
             "active_contacts": report.active_contacts,
+            "contacts": {
+                "planes": report.contacts.planes, "meshes": report.contacts.meshes,
+                "surface": report.contacts.surface, "max_penetration": report.contacts.max_penetration,
+                "seconds": report.contacts.seconds,
+            },
             "surface": { "min_z": lo, "max_z": hi, "centroid": [centroid.x, centroid.y, centroid.z] },
             "probes": probes,
         });
@@ -521,9 +604,18 @@ impl Simulation {
         let constraints = Constraints {
             pinned_dofs: pins.pinned_dofs,
             extra_load: pins.extra_load,
-            contact_points: (!self.planes.is_empty()).then(|| surface.embedding.clone()),
-            planes: self.planes.clone(),
+            planes: self.contact.planes.clone(),
+            meshes: self.contact.meshes.clone(),
+            surface_contact: self.contact.surface_contact.clone().map(|c| SurfaceContact {
+                triangles: surface.triangles.clone(),
+                on_cut: surface.on_cut.clone(),
+                ..c
+            }),
             ..Default::default()
+        };
+        let constraints = Constraints {
+            contact_points: constraints.has_any_contact().then(|| surface.embedding.clone()),
+            ..constraints
         };
         self.integrator
             .apply_topology_change(d, &change, constraints)
@@ -589,6 +681,37 @@ impl Simulation {
     }
 }
 
+/// Reads an OBJ named by a scene (relative to the scene file) and places it by `transform`
+/// (`lowest_z` included); errors name the scene, the mesh and `what` (the field).
+fn load_obj(scene: &Path, obj: &str, transform: &Transform, what: &str) -> Result<TriangleMesh, SceneError> {
+    let resolved = scene.parent().unwrap_or(Path::new(".")).join(obj);
+    let mesh_error = |message: String| SceneError::Mesh {
+        scene: scene.to_path_buf(),
+        mesh: resolved.clone(),
+        message: format!("{what}: {message}"),
+    };
+    let file = std::fs::File::open(&resolved).map_err(|e| mesh_error(format!("cannot open: {e}")))?;
+    let mesh =
+        TriangleMesh::from_obj_reader(&mut std::io::BufReader::new(file)).map_err(|e| mesh_error(e.to_string()))?;
+    let mut mesh = mesh.transformed(|p| transform_point(transform, p));
+    if let Some(z) = transform.lowest_z {
+        let lowest = mesh.vertices.iter().map(|p| p.z).fold(Real::INFINITY, Real::min);
+        if lowest.is_finite() {
+            mesh = mesh.transformed(|p| Point3::new(p.x, p.y, p.z + z - lowest));
+        }
+    }
+    Ok(mesh)
+}
+
+/// Default contact reach, as a fraction of the element size: deeper penetration is taken for
+/// the far side of a thin part (a bunny's ear is a few elements thick, penalty contact sinks
+/// micrometres).
+pub const DEFAULT_REACH: Real = 0.1;
+
+/// Penalty stiffness of surface contact when a scene has neither a `contact` entry nor a
+/// collider to take it from [N/m].
+pub const DEFAULT_CONTACT_STIFFNESS: Real = 1e4;
+
 /// Turns the scene's events into cuts ready to act: OBJ soups read and placed, blades checked.
 fn prepare_timeline(events: &[EventSpec], scene: &Path) -> Result<Vec<TimedCut>, SceneError> {
     let build_error = |message: String| SceneError::Build { path: scene.to_path_buf(), message };
@@ -601,17 +724,7 @@ fn prepare_timeline(events: &[EventSpec], scene: &Path) -> Result<Vec<TimedCut>,
                         CutSurface::Plane { point: Point3::from(*point), normal: Vector3::from(normal.0) }
                     }
                     CutSpec::Obj { path: obj, transform } => {
-                        let resolved = scene.parent().unwrap_or(Path::new(".")).join(obj);
-                        let mesh_error = |message: String| SceneError::Mesh {
-                            scene: scene.to_path_buf(),
-                            mesh: resolved.clone(),
-                            message: format!("timeline[{index}]: {message}"),
-                        };
-                        let file =
-                            std::fs::File::open(&resolved).map_err(|e| mesh_error(format!("cannot open: {e}")))?;
-                        let mesh = TriangleMesh::from_obj_reader(&mut std::io::BufReader::new(file))
-                            .map_err(|e| mesh_error(e.to_string()))?;
-                        let mesh = mesh.transformed(|p| transform_point(transform, p));
+                        let mesh = load_obj(scene, obj, transform, &format!("timeline[{index}]"))?;
                         CutSurface::Triangles(
                             (0..mesh.triangles.len()).filter_map(|t| mesh.triangle_points(t)).collect(),
                         )

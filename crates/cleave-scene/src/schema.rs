@@ -40,6 +40,11 @@ pub struct Scene {
     /// Colliders.
     #[serde(default)]
     pub colliders: Vec<ColliderSpec>,
+    /// Contact of the body's surface with itself (between the pieces of a cut body and within
+    /// one piece). Default: on for a backend that cuts, with the first collider's stiffness and
+    /// damping; `Some((...))` sets it, `contact: None` turns it off.
+    #[serde(default)]
+    pub contact: Option<Option<ContactSpec>>,
     /// Material points whose positions are logged every step.
     #[serde(default)]
     pub probes: Vec<ProbeSpec>,
@@ -215,7 +220,56 @@ pub enum ColliderSpec {
         /// normal damping per contact point [N·s/m]
         #[serde(default)]
         damping: Real,
+        /// Coulomb friction coefficient μ (0: frictionless)
+        #[serde(default = "default_friction")]
+        friction: Real,
     },
+    /// A static triangle mesh from an OBJ file (relative to the scene file): the allowed side
+    /// is the one its triangles' right-hand normals point to.
+    Mesh {
+        /// path of the OBJ
+        path: String,
+        /// placement
+        #[serde(default)]
+        transform: Transform,
+        /// penalty stiffness per contact point [N/m]
+        stiffness: Positive,
+        /// normal damping per contact point [N·s/m]
+        #[serde(default)]
+        damping: Real,
+        /// Coulomb friction coefficient μ (0: frictionless)
+        #[serde(default = "default_friction")]
+        friction: Real,
+        /// how deep behind the mesh a point is still pushed back, and how far in front of it (beyond
+        /// its motion in the step) it is tested [m]; default: a tenth of the element size
+        #[serde(default)]
+        reach: Option<Real>,
+    },
+}
+
+fn default_friction() -> Real {
+    0.5
+}
+
+/// Contact of the body's surface with itself.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSpec {
+    /// penalty stiffness per surface point [N/m]
+    pub stiffness: Positive,
+    /// normal damping per surface point [N·s/m]
+    #[serde(default)]
+    pub damping: Real,
+    /// Coulomb friction coefficient μ (0: frictionless)
+    #[serde(default = "default_friction")]
+    pub friction: Real,
+    /// distance the surfaces are held apart [m]
+    #[serde(default)]
+    pub thickness: Real,
+    /// how deep behind a triangle a point is still pushed back, and how far in front of it
+    /// (beyond its motion in the step) it is tested [m]; default: a tenth of the element size
+    #[serde(default)]
+    pub reach: Option<Real>,
 }
 
 /// A logged material point.

@@ -17,7 +17,13 @@ fn constraints(mesh: &VirtualNodeMesh, surface: &TriangleMesh) -> Result<Constra
     // exactly one region).
     Ok(Constraints {
         contact_points: Some(mesh.embed(&surface.vertices)?),
-        planes: vec![PlaneCollider { point: Point3::origin(), normal: Vector3::z(), stiffness: 2e4, damping: 20.0 }],
+        planes: vec![PlaneCollider {
+            point: Point3::origin(),
+            normal: Vector3::z(),
+            stiffness: 2e4,
+            damping: 20.0,
+            friction: 0.0,
+        }],
         ..Default::default()
     })
 }

@@ -10,6 +10,7 @@
 use crate::arrangement::Cover;
 use crate::mesh::VirtualNodeMesh;
 use cleave_core::{Embedding, Point3, Real, Vector3};
+use cleave_geometry::closest_point_on_triangle;
 use rayon::prelude::*;
 use std::collections::HashMap;
 
@@ -61,40 +62,6 @@ struct Polygon {
 /// Weights below this do not count when deciding whether two embedded vertices at one rest
 /// position are the same material point (barycentric rounding on a shared face is ~1e-16).
 const ZERO_WEIGHT: Real = 1e-12;
-
-/// The point of triangle `t` closest to `p` (Ericson, Real-Time Collision Detection, 5.1.5).
-fn closest_on_triangle(p: &Point3<Real>, t: &[Point3<Real>; 3]) -> Point3<Real> {
-    let [a, b, c] = *t;
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return a;
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(&bp), ac.dot(&bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return a + ab * (d1 / (d1 - d3));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(&cp), ac.dot(&cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return a + ac * (d2 / (d2 - d6));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    }
-    let denominator = 1.0 / (va + vb + vc);
-    a + ab * (vb * denominator) + ac * (vc * denominator)
-}
 
 /// Finds the vertex already made for a material point: one on the same nodes (weights above
 /// [`ZERO_WEIGHT`]) within `tolerance` of the same rest position. Positions of one point
@@ -406,7 +373,9 @@ impl VirtualNodeMesh {
                 );
                 let nearest = source.triangles_of_tet[tet]
                     .iter()
-                    .map(|&i| ((closest_on_triangle(&centroid, &source.triangles[i as usize]) - centroid).norm(), i))
+                    .map(|&i| {
+                        ((closest_point_on_triangle(&centroid, &source.triangles[i as usize]).0 - centroid).norm(), i)
+                    })
                     .min_by(|a, b| a.0.total_cmp(&b.0));
                 sources.push(nearest.map_or(u32::MAX, |n| n.1));
             }

@@ -26,7 +26,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let surface = cubes.embed(&mesh.vertices)?;
     let constraints = Constraints {
         contact_points: Some(surface.clone()),
-        planes: vec![PlaneCollider { point: Point3::origin(), normal: Vector3::z(), stiffness: 2e4, damping: 20.0 }],
+        planes: vec![PlaneCollider {
+            point: Point3::origin(),
+            normal: Vector3::z(),
+            stiffness: 2e4,
+            damping: 20.0,
+            friction: 0.0,
+        }],
         ..Default::default()
     };
     let mut settings = Settings::new(1.0 / 60.0);

@@ -114,6 +114,7 @@ fn a_block_dropped_on_a_plane_comes_to_rest_on_it() {
             normal: Vector3::z(),
             stiffness,
             damping: 50.0,
+            friction: 0.0,
         }],
         ..Default::default()
     };

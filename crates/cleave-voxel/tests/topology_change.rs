@@ -42,7 +42,8 @@ fn constraints(mesh: &VoxelMesh, probes: &[Point3<Real>]) -> Constraints {
         .filter(|(_, p)| p[0].abs() < 1e-9)
         .flat_map(|(n, _)| [3 * n, 3 * n + 1, 3 * n + 2])
         .collect();
-    let ground = PlaneCollider { point: Point3::origin(), normal: Vector3::z(), stiffness: 1e5, damping: 10.0 };
+    let ground =
+        PlaneCollider { point: Point3::origin(), normal: Vector3::z(), stiffness: 1e5, damping: 10.0, friction: 0.0 };
     Constraints {
         pinned_dofs,
         contact_points: Some(mesh.embed(probes).unwrap()),

@@ -1,0 +1,698 @@
+//! Contact: embedded surface points against planes, static triangle meshes and the triangles of
+//! the body's own embedded surface (between pieces and within one), with regularized Coulomb
+//! friction. Equations and what is guaranteed: docs/math/contact.md.
+//!
+//! Every contact is one *row*: the point's embedding row, minus the barycentric combination of
+//! the rows of a triangle's vertices when the other side is the body itself. With the row's
+//! weights `w`, a normal `n` and a gap `d`, a contact contributes
+//!
+//! ```text
+//! force    w ⊗ f,             f = −k min(d, 0) n
+//! matrix   (w wᵀ) ⊗ P,        P = (h² k + h c) n nᵀ + h c_t (I − n nᵀ)
+//! energy   ½ k min(d, 0)²
+//! ```
+//!
+//! and one set of loops below turns that into the force, the assembled matrix, the matrix-free
+//! action, the preconditioner's diagonal blocks and the energy, for every kind alike.
+
+use crate::constraints::{Constraints, MeshCollider};
+use cleave_core::{AssemblyPattern, Embedding, Matrix3, Point3, Real, Vector3};
+use cleave_geometry::closest_point_on_triangle;
+use parry3d_f64::bounding_volume::Aabb;
+use parry3d_f64::math::Vector as ParryVector;
+use parry3d_f64::partitioning::{Bvh, BvhBuildStrategy, BvhWorkspace};
+use rayon::prelude::*;
+
+/// Tangential slip speed below which friction is a viscous stick, `c_t = μ λ (2/ε − |v_t|/ε²)`
+/// (the IPC mollifier), above which it is Coulomb's `μ λ / |v_t|` [m/s].
+pub const FRICTION_SLIP_SPEED: Real = 1e-3;
+
+/// What a contact pushes against.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ContactKind {
+    /// A plane collider.
+    Plane,
+    /// A static triangle mesh collider.
+    Mesh,
+    /// A triangle of the body's own embedded surface (another piece, or the same piece).
+    Surface,
+}
+
+/// One active contact of a step.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Contact {
+    /// Row of the point in the contact-point embedding.
+    pub point: u32,
+    /// The other side when it is the body's surface: vertex rows and barycentric weights.
+    pub triangle: Option<([u32; 3], [Real; 3])>,
+    /// `P` of the module docs.
+    pub matrix: Matrix3<Real>,
+    /// `f` of the module docs.
+    pub force: Vector3<Real>,
+    /// Gap at the start of the step (negative: penetrating) [m].
+    pub depth: Real,
+    /// Stiffness, for the energy.
+    pub stiffness: Real,
+    /// Normal damping.
+    pub damping: Real,
+    /// Unit normal, towards the point's allowed side.
+    pub normal: Vector3<Real>,
+    /// Index of the lagged normal force of this point and this collider.
+    pub slot: u32,
+    /// `d(x) = n · row(x) + offset` (for a plane `−n·p₀`, a mesh `−n·c`, the surface `−thickness`):
+    /// the gap of this pair at any state, for the energy after the step.
+    pub offset: Real,
+    pub kind: ContactKind,
+}
+
+/// Counts and depth of the active contacts of a step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ContactStats {
+    /// Active contacts against planes.
+    pub planes: usize,
+    /// Active contacts against mesh colliders.
+    pub meshes: usize,
+    /// Active contacts between surface points and surface triangles (between or within pieces).
+    pub surface: usize,
+    /// Largest penetration `max(−d)` over active contacts (0 when none penetrates) [m].
+    pub max_penetration: Real,
+    /// Seconds spent finding contacts.
+    pub seconds: Real,
+}
+
+/// Per-epoch contact structures and per-step scratch.
+#[derive(Default)]
+pub(crate) struct ContactSet {
+    pub contacts: Vec<Contact>,
+    positions: Vec<Point3<Real>>,
+    velocities: Vec<Vector3<Real>>,
+    vertex_normals: Vec<Vector3<Real>>,
+    triangle_normals: Vec<Vector3<Real>>,
+    /// One-ring of every surface point (CSR), itself included: pairs excluded by adjacency.
+    ring_offsets: Vec<usize>,
+    ring: Vec<u32>,
+    /// Rest position of every surface point, and the connected component of the surface it
+    /// belongs to (triangles sharing vertices).
+    rest: Vec<Point3<Real>>,
+    component: Vec<u32>,
+    /// Per surface component: its triangles, and those on a cut (indices into the surface's
+    /// triangles), with a bounding volume hierarchy over each list (built at the first step of
+    /// an epoch, refit every step).
+    component_triangles: Vec<Vec<u32>>,
+    component_cut_triangles: Vec<Vec<u32>>,
+    bvh_all: Vec<Bvh>,
+    bvh_cut: Vec<Bvh>,
+    bvh_workspace: BvhWorkspace,
+    per_point: Vec<Option<Contact>>,
+    /// Normal force of the last step per (collider, point): planes, then meshes, then the
+    /// surface; what friction is proportional to.
+    lagged: Vec<Real>,
+}
+
+impl std::fmt::Debug for ContactSet {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ContactSet").field("contacts", &self.contacts.len()).finish()
+    }
+}
+
+fn to_parry(p: &Point3<Real>) -> ParryVector {
+    ParryVector::new(p.x, p.y, p.z)
+}
+
+/// The contact normal of point `q` against the triangle point `c` closest to it (at
+/// `distance`), the triangle having unit normal `n`: `n` when `c` is the orthogonal projection
+/// of `q` (up to rounding), so that the two forces act on one line (`q − c ∥ n`) and conserve
+/// angular momentum; none when `q` lies beyond the triangle's edges (it is the neighbouring
+/// triangle's; where no triangle's, an edge meets an edge, which vertex–triangle contact does
+/// not see: docs/math/contact.md §5).
+fn contact_normal(q: &Point3<Real>, c: &Point3<Real>, n: &Vector3<Real>, distance: Real) -> Option<Vector3<Real>> {
+    let offset = q - c;
+    (distance == 0.0 || (offset - n * n.dot(&offset)).norm() <= 1e-9 * distance).then_some(*n)
+}
+
+/// `c_t / (μ λ)`: the lagged tangential damping per unit friction force.
+fn slip_coefficient(speed: Real) -> Real {
+    let eps = FRICTION_SLIP_SPEED;
+    if speed < eps { 2.0 / eps - speed / (eps * eps) } else { 1.0 / speed }
+}
+
+/// Builds the contact of a point at gap `d` along unit normal `n` with relative velocity `u`.
+/// Active when `d < 0` or when the prediction `d + h n·(u + h g)` is (gravity only for points
+/// not moving away, see the plane collider's documentation in `integrator.rs`).
+#[allow(clippy::too_many_arguments)]
+fn make_contact(
+    point: u32,
+    triangle: Option<([u32; 3], [Real; 3])>,
+    (kind, slot, lagged_force): (ContactKind, u32, Real),
+    n: Vector3<Real>,
+    (d, offset): (Real, Real),
+    u: &Vector3<Real>,
+    gravity_along: Real,
+    h: Real,
+    (stiffness, damping, friction): (Real, Real, Real),
+) -> Option<Contact> {
+    let approach = n.dot(u);
+    let pulled = approach + h * gravity_along;
+    let predicted = d + h * if approach <= 0.0 { pulled } else { approach };
+    if d.min(predicted) >= 0.0 {
+        return None;
+    }
+    // The normal force the last step's solution carried (a resting point sits at d ≈ 0, held
+    // by the implicit term, not by its penetration), at least the penetration's.
+    let normal_force = lagged_force.max(stiffness * (-d).max(0.0));
+    let tangential = u - n * approach;
+    let c_t = friction * normal_force * slip_coefficient(tangential.norm());
+    let nn = n * n.transpose();
+    let matrix = nn * (h * h * stiffness + h * damping) + (Matrix3::identity() - nn) * (h * c_t);
+    let force = n * (-stiffness * d.min(0.0));
+    Some(Contact { point, triangle, matrix, force, depth: d, stiffness, damping, normal: n, slot, offset, kind })
+}
+
+impl ContactSet {
+    /// Per-epoch structures: the one-ring, rest position and surface component of every point.
+    pub fn new(constraints: &Constraints, rest_dofs: &[Real]) -> Self {
+        let mut set = ContactSet::default();
+        if let (Some(points), Some(surface)) = (&constraints.contact_points, &constraints.surface_contact) {
+            set.rest = (0..points.len()).map(|i| points.point(rest_dofs, i)).collect();
+            let mut parent: Vec<u32> = (0..points.len() as u32).collect();
+            fn find(parent: &mut [u32], mut i: u32) -> u32 {
+                while parent[i as usize] != i {
+                    parent[i as usize] = parent[parent[i as usize] as usize];
+                    i = parent[i as usize];
+                }
+                i
+            }
+            for t in &surface.triangles {
+                let (a, b, c) = (find(&mut parent, t[0]), find(&mut parent, t[1]), find(&mut parent, t[2]));
+                parent[b as usize] = a;
+                parent[c as usize] = a;
+            }
+            let roots: Vec<u32> = (0..points.len() as u32).map(|i| find(&mut parent, i)).collect();
+            let mut compact = vec![u32::MAX; points.len()];
+            let mut count = 0;
+            set.component = roots
+                .iter()
+                .map(|&r| {
+                    if compact[r as usize] == u32::MAX {
+                        compact[r as usize] = count;
+                        count += 1;
+                    }
+                    compact[r as usize]
+                })
+                .collect();
+            set.component_triangles = vec![Vec::new(); count as usize];
+            set.component_cut_triangles = vec![Vec::new(); count as usize];
+            for (t, tri) in surface.triangles.iter().enumerate() {
+                let c = set.component[tri[0] as usize] as usize;
+                set.component_triangles[c].push(t as u32);
+                if surface.on_cut.get(t).copied().unwrap_or(false) {
+                    set.component_cut_triangles[c].push(t as u32);
+                }
+            }
+            let mut rings: Vec<Vec<u32>> = (0..points.len() as u32).map(|i| vec![i]).collect();
+            for t in &surface.triangles {
+                for &a in t {
+                    for &b in t {
+                        rings[a as usize].push(b);
+                    }
+                }
+            }
+            set.ring_offsets.push(0);
+            for mut ring in rings {
+                ring.sort_unstable();
+                ring.dedup();
+                set.ring.extend(ring);
+                set.ring_offsets.push(set.ring.len());
+            }
+        }
+        set
+    }
+
+    /// Whether point `i` lies behind triangle `tri` (at barycentric `beta`) in the rest shape.
+    /// Nothing overlaps at rest, so such a pair of one surface is not a contact but a point
+    /// beside an obtuse convex edge seen from the face across it; the two faces of a cut
+    /// coincide at rest (gap 0) and stay candidates.
+    fn behind_at_rest(&self, i: usize, tri: &[u32; 3], beta: &[Real; 3]) -> bool {
+        let [a, b, c] = tri.map(|k| self.rest[k as usize]);
+        let normal = (b - a).cross(&(c - a));
+        let scale = normal.norm();
+        if scale == 0.0 {
+            return false;
+        }
+        let on = Point3::from(a.coords * beta[0] + b.coords * beta[1] + c.coords * beta[2]);
+        normal.dot(&(self.rest[i] - on)) / scale < -1e-9 * (b - a).norm().max((c - a).norm())
+    }
+
+    fn excluded(&self, point: u32, triangle: &[u32; 3]) -> bool {
+        let ring = &self.ring[self.ring_offsets[point as usize]..self.ring_offsets[point as usize + 1]];
+        // The triangle contains the point or a neighbour of it: a neighbouring triangle's vertex.
+        triangle.iter().any(|v| ring.binary_search(v).is_ok())
+    }
+
+    /// Finds this step's contacts at `x` with velocities `v`.
+    pub fn detect(&mut self, constraints: &Constraints, x: &[Real], v: &[Real], h: Real, gravity: &Vector3<Real>) {
+        self.contacts.clear();
+        let Some(points) = &constraints.contact_points else { return };
+        let n = points.len();
+        self.positions.resize(n, Point3::origin());
+        self.velocities.resize(n, Vector3::zeros());
+        self.positions.par_iter_mut().enumerate().for_each(|(i, p)| *p = points.point(x, i));
+        self.velocities.par_iter_mut().enumerate().for_each(|(i, u)| *u = points.point(v, i).coords);
+        let colliders = constraints.planes.len() + constraints.meshes.len() + 1;
+        if self.lagged.len() != colliders * n {
+            self.lagged = vec![0.0; colliders * n];
+        }
+        let (positions, velocities, lagged) = (&self.positions, &self.velocities, &self.lagged);
+        for (k, plane) in constraints.planes.iter().enumerate() {
+            let params = (plane.stiffness, plane.damping, plane.friction);
+            let g = plane.normal.dot(gravity);
+            let found: Vec<Contact> = (0..n)
+                .into_par_iter()
+                .filter_map(|i| {
+                    let offset = -plane.normal.dot(&plane.point.coords);
+                    let d = plane.normal.dot(&positions[i].coords) + offset;
+                    let slot = k * n + i;
+                    let which = (ContactKind::Plane, slot as u32, lagged[slot]);
+                    make_contact(i as u32, None, which, plane.normal, (d, offset), &velocities[i], g, h, params)
+                })
+                .collect();
+            self.contacts.extend(found);
+        }
+        for (k, mesh) in constraints.meshes.iter().enumerate() {
+            let k = constraints.planes.len() + k;
+            let found: Vec<Contact> = (0..n)
+                .into_par_iter()
+                .filter_map(|i| {
+                    let (q, u) = (&positions[i], &velocities[i]);
+                    let radius = mesh.reach + h * u.norm();
+                    let (c, normal) = mesh.closest(q, radius)?;
+                    let d = normal.dot(&(q - c));
+                    // Deeper than `reach` behind a triangle is the far side of a thin wall.
+                    if d < -mesh.reach {
+                        return None;
+                    }
+                    let params = (mesh.stiffness, mesh.damping, mesh.friction);
+                    let slot = k * n + i;
+                    let which = (ContactKind::Mesh, slot as u32, lagged[slot]);
+                    make_contact(
+                        i as u32,
+                        None,
+                        which,
+                        normal,
+                        (d, -normal.dot(&c.coords)),
+                        u,
+                        normal.dot(gravity),
+                        h,
+                        params,
+                    )
+                })
+                .collect();
+            self.contacts.extend(found);
+        }
+        if let Some(surface) = &constraints.surface_contact {
+            self.detect_surface(surface, h, (colliders - 1) * n);
+        }
+    }
+
+    fn detect_surface(&mut self, surface: &crate::constraints::SurfaceContact, h: Real, first_slot: usize) {
+        let (positions, velocities) = (&self.positions, &self.velocities);
+        let triangles = &surface.triangles;
+        // Deformed vertex normals (area weighted): a contact needs opposing surfaces, so points
+        // of one smooth surface never push on its own nearby triangles.
+        self.vertex_normals.clear();
+        self.vertex_normals.resize(positions.len(), Vector3::zeros());
+        self.triangle_normals.clear();
+        for t in triangles {
+            let [a, b, c] = t.map(|i| positions[i as usize]);
+            let area_normal = (b - a).cross(&(c - a));
+            for &i in t {
+                self.vertex_normals[i as usize] += area_normal;
+            }
+            self.triangle_normals.push(area_normal.try_normalize(0.0).unwrap_or_else(Vector3::zeros));
+        }
+        // Motion is bounded relative to the mean velocity `w`: |u_q − u_t| ≤ |u_q − w| + |u_t − w|,
+        // so a body falling as a whole does not inflate every box by its fall.
+        let w = velocities.iter().sum::<Vector3<Real>>() / velocities.len().max(1) as Real;
+        let leaf = |t: &[u32; 3]| -> Aabb {
+            let mut lo = positions[t[0] as usize];
+            let mut hi = lo;
+            let mut speed: Real = 0.0;
+            for &i in t {
+                lo = lo.inf(&positions[i as usize]);
+                hi = hi.sup(&positions[i as usize]);
+                speed = speed.max((velocities[i as usize] - w).norm());
+            }
+            let margin = Vector3::repeat(surface.reach + h * speed);
+            Aabb::new(to_parry(&(lo - margin)), to_parry(&(hi + margin)))
+        };
+        let lists = self.component_triangles.iter().chain(&self.component_cut_triangles);
+        if self.bvh_all.is_empty() {
+            let mut all: Vec<Bvh> = lists
+                .map(|list| {
+                    let leaves: Vec<Aabb> = list.iter().map(|&t| leaf(&triangles[t as usize])).collect();
+                    Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves)
+                })
+                .collect();
+            self.bvh_cut = all.split_off(self.component_triangles.len());
+            self.bvh_all = all;
+        } else {
+            for (bvh, list) in self.bvh_all.iter_mut().chain(self.bvh_cut.iter_mut()).zip(lists) {
+                for (leaf_index, &t) in list.iter().enumerate() {
+                    bvh.insert_or_update_partially(leaf(&triangles[t as usize]), leaf_index as u32, 0.0);
+                }
+                bvh.refit(&mut self.bvh_workspace);
+            }
+        }
+        let mut per_point = std::mem::take(&mut self.per_point);
+        let this = &*self;
+        let params = (surface.stiffness, surface.damping, surface.friction);
+        per_point.clear();
+        per_point.resize(positions.len(), None);
+        per_point.par_iter_mut().enumerate().for_each(|(i, slot)| {
+            let q = positions[i];
+            let u = velocities[i];
+            let vertex_normal = this.vertex_normals[i];
+            if vertex_normal == Vector3::zeros() {
+                return;
+            }
+            let motion = Vector3::repeat(h * (u - w).norm());
+            let query = Aabb::new(to_parry(&(q - motion)), to_parry(&(q + motion)));
+            let mut best: Option<(Real, usize, Point3<Real>, [Real; 3])> = None;
+            // Other pieces' whole surfaces; the point's own piece only through its cut faces
+            // (the two faces of an unfinished cut, a flap): its own smooth surface around the
+            // point is never visited.
+            let own = this.component[i] as usize;
+            let searched = (0..this.bvh_all.len()).map(|b| {
+                if b == own {
+                    (&this.bvh_cut[b], &this.component_cut_triangles[b])
+                } else {
+                    (&this.bvh_all[b], &this.component_triangles[b])
+                }
+            });
+            for t in searched.flat_map(|(bvh, list)| bvh.intersect_aabb(&query).map(|leaf| list[leaf as usize])) {
+                let tri = &triangles[t as usize];
+                // Cheapest first: a contact needs opposing surfaces (this also drops the
+                // point's own smooth surface around it), then no adjacency.
+                if vertex_normal.dot(&this.triangle_normals[t as usize]) >= 0.0 || this.excluded(i as u32, tri) {
+                    continue;
+                }
+                let corners = tri.map(|k| positions[k as usize]);
+                let (c, beta) = closest_point_on_triangle(&q, &corners);
+                let distance = (q - c).norm();
+                if contact_normal(&q, &c, &this.triangle_normals[t as usize], distance).is_none() {
+                    continue;
+                }
+                if this.component[i] == this.component[tri[0] as usize] && this.behind_at_rest(i, tri, &beta) {
+                    continue;
+                }
+                if best.is_none_or(|b| distance < b.0) {
+                    best = Some((distance, t as usize, c, beta));
+                }
+            }
+            let Some((distance, t, c, beta)) = best else { return };
+            let tri = triangles[t];
+            // Along q − c, so the two forces act on one line and conserve angular momentum:
+            // the triangle's normal where the point projects into it, else the direction from
+            // the closest edge or corner, on the side the triangle's normal says.
+            let Some(normal) = contact_normal(&q, &c, &this.triangle_normals[t], distance) else { return };
+            let other_velocity =
+                tri.iter().zip(&beta).fold(Vector3::zeros(), |s, (&k, &b)| s + velocities[k as usize] * b);
+            let relative = u - other_velocity;
+            let reach = surface.reach
+                + h * (relative.norm()
+                    + tri.iter().map(|&k| (velocities[k as usize] - other_velocity).norm()).fold(0.0, Real::max));
+            if distance > reach {
+                return;
+            }
+            let d = normal.dot(&(q - c)) - surface.thickness;
+            // Deeper than `reach` behind a triangle is the far side of a thin part, not contact.
+            if d < -surface.reach {
+                return;
+            }
+            let which = (ContactKind::Surface, (first_slot + i) as u32, this.lagged[first_slot + i]);
+            let gap = (d, -surface.thickness);
+            *slot = make_contact(i as u32, Some((tri, beta)), which, normal, gap, &relative, 0.0, h, params);
+        });
+        self.contacts.extend(per_point.iter().flatten().copied());
+        self.per_point = per_point;
+    }
+
+    /// Stores the normal force every active contact carried in the step just solved (new
+    /// velocities `v`): `max(0, −k (min(d, 0) + h n·u⁺) − c n·u⁺)` with `u⁺` the row's
+    /// velocity; friction of the next step is proportional to it.
+    pub fn store_normal_forces(&mut self, points: &Embedding, v: &[Real], h: Real) {
+        self.lagged.iter_mut().for_each(|l| *l = 0.0);
+        for c in &self.contacts {
+            let approach = c.normal.dot(&row_value(points, c, v));
+            let force = -c.stiffness * (c.depth.min(0.0) + h * approach) - c.damping * approach;
+            self.lagged[c.slot as usize] = force.max(0.0);
+        }
+    }
+
+    /// Counts per kind and the deepest penetration.
+    pub fn stats(&self) -> ContactStats {
+        let mut stats = ContactStats::default();
+        for c in &self.contacts {
+            match c.kind {
+                ContactKind::Plane => stats.planes += 1,
+                ContactKind::Mesh => stats.meshes += 1,
+                ContactKind::Surface => stats.surface += 1,
+            }
+            stats.max_penetration = stats.max_penetration.max(-c.depth);
+        }
+        stats
+    }
+}
+
+/// Visits the entries `(node, weight)` of a contact's row: the point's, then the triangle's
+/// (weights negated and scaled by the barycentric coordinates). A node may occur
+/// more than once (point and triangle in one element); every sum below treats the entries as
+/// a sum, which is exact.
+#[inline]
+fn for_each_entry(points: &Embedding, contact: &Contact, mut visit: impl FnMut(u32, Real)) {
+    let (nodes, weights) = points.row(contact.point as usize);
+    for (&n, &w) in nodes.iter().zip(weights) {
+        visit(n, w);
+    }
+    if let Some((vertices, beta)) = &contact.triangle {
+        for (&vertex, &b) in vertices.iter().zip(beta) {
+            let (nodes, weights) = points.row(vertex as usize);
+            for (&n, &w) in nodes.iter().zip(weights) {
+                visit(n, -b * w);
+            }
+        }
+    }
+}
+
+/// `Σ_entries w v_node` over a contact's row.
+#[inline]
+fn row_value(points: &Embedding, contact: &Contact, v: &[Real]) -> Vector3<Real> {
+    let mut sum = Vector3::zeros();
+    for_each_entry(points, contact, |n, w| {
+        let i = 3 * n as usize;
+        sum += Vector3::new(v[i], v[i + 1], v[i + 2]) * w;
+    });
+    sum
+}
+
+/// `force += Σ w ⊗ f` over the contacts.
+pub(crate) fn add_forces(points: &Embedding, contacts: &[Contact], force: &mut [Real]) {
+    for c in contacts {
+        for_each_entry(points, c, |n, w| {
+            for a in 0..3 {
+                force[3 * n as usize + a] += w * c.force[a];
+            }
+        });
+    }
+}
+
+/// `Σ ½ k min(d(x), 0)²` over the pairs of `contacts` at state `x`, and how many penetrate.
+/// A pair found at the start of a step keeps its normal and barycentric point through it, so
+/// this is the penalty energy at the end of the step of the pairs the step acted on.
+pub(crate) fn energy(points: &Embedding, contacts: &[Contact], x: &[Real]) -> (Real, usize) {
+    let mut energy = 0.0;
+    let mut penetrating = 0;
+    for c in contacts {
+        let d = c.normal.dot(&row_value(points, c, x)) + c.offset;
+        if d < 0.0 {
+            energy += 0.5 * c.stiffness * d * d;
+            penetrating += 1;
+        }
+    }
+    (energy, penetrating)
+}
+
+/// The node groups of this step's contact rows whose couplings the pattern lacks (a point and
+/// a triangle of the body's surface that were never in contact before in this epoch).
+pub(crate) fn missing_couplings(points: &Embedding, set: &ContactSet, pattern: &AssemblyPattern) -> Vec<Vec<u32>> {
+    let mut missing = Vec::new();
+    let mut nodes: Vec<u32> = Vec::with_capacity(16);
+    for c in set.contacts.iter().filter(|c| c.triangle.is_some()) {
+        nodes.clear();
+        for_each_entry(points, c, |n, _| nodes.push(n));
+        if nodes.iter().any(|&j| nodes.iter().any(|&i| pattern.rank(i, j).is_none())) {
+            let mut group = nodes.clone();
+            group.sort_unstable();
+            group.dedup();
+            missing.push(group);
+        }
+    }
+    missing
+}
+
+/// Adds `(w wᵀ) ⊗ P` of every contact to the assembled matrix, whose pattern holds every
+/// contact row's couplings (see [`missing_couplings`]).
+pub(crate) fn add_matrix(points: &Embedding, set: &ContactSet, pattern: &AssemblyPattern, values: &mut [Real]) {
+    let mut entries: Vec<(u32, Real)> = Vec::with_capacity(16);
+    for c in &set.contacts {
+        entries.clear();
+        for_each_entry(points, c, |n, w| entries.push((n, w)));
+        for &(j, wj) in &entries {
+            for &(i, wi) in &entries {
+                let rank = pattern.rank(i, j).expect("the pattern holds every contact row's couplings");
+                pattern.add_block(values, rank, j, &c.matrix, wi * wj);
+            }
+        }
+    }
+}
+
+/// `out += Σ (w wᵀ ⊗ P) p` over the contacts (the full rows: matrix-free path).
+pub(crate) fn add_action(points: &Embedding, contacts: &[Contact], p: &[Real], out: &mut [Real]) {
+    for c in contacts {
+        let y = c.matrix * row_value(points, c, p);
+        for_each_entry(points, c, |n, w| {
+            for a in 0..3 {
+                out[3 * n as usize + a] += w * y[a];
+            }
+        });
+    }
+}
+
+/// `blocks[node] += w² P` (block-Jacobi).
+pub(crate) fn add_diagonal_blocks(points: &Embedding, contacts: &[Contact], blocks: &mut [Matrix3<Real>]) {
+    for c in contacts {
+        for_each_entry(points, c, |n, w| blocks[n as usize] += c.matrix * (w * w));
+    }
+}
+
+impl MeshCollider {
+    /// The closest point of the mesh to `q` within `radius` and the unit normal of its
+    /// triangle (pointing to the allowed side).
+    fn closest(&self, q: &Point3<Real>, radius: Real) -> Option<(Point3<Real>, Vector3<Real>)> {
+        let r = Vector3::repeat(radius);
+        let query = Aabb::new(to_parry(&(q - r)), to_parry(&(q + r)));
+        let mut best: Option<(Real, Point3<Real>, usize)> = None;
+        for t in self.bvh.intersect_aabb(&query) {
+            let corners = self.triangles[t as usize].map(|k| self.vertices[k as usize]);
+            let (c, _) = closest_point_on_triangle(q, &corners);
+            let distance = (q - c).norm();
+            if contact_normal(q, &c, &self.normals[t as usize], distance).is_none() {
+                continue;
+            }
+            if distance <= radius && best.is_none_or(|b| distance < b.0) {
+                best = Some((distance, c, t as usize));
+            }
+        }
+        best.and_then(|(distance, c, t)| Some((c, contact_normal(q, &c, &self.normals[t], distance)?)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::constraints::{PlaneCollider, SurfaceContact};
+
+    /// Two triangles of two pieces, the upper one sunk into the lower, with a tilted ground
+    /// plane under a corner: every point its own node.
+    fn setup() -> (Constraints, Vec<Real>, Vec<Real>) {
+        let mut points = Embedding::new();
+        for i in 0..6u32 {
+            points.push_row(&[i], &[1.0]);
+        }
+        let lower = [[0.0, 0.0, 0.0], [1.0, 0.1, 0.02], [0.2, 1.0, -0.03]];
+        let upper = [[0.3, 0.3, -0.004], [0.35, 0.5, -0.002], [0.55, 0.3, 0.05]];
+        let x: Vec<Real> = lower.iter().chain(&upper).flatten().copied().collect();
+        // At rest the upper triangle floats above the lower one.
+        let rest: Vec<Real> =
+            x.iter().enumerate().map(|(i, &c)| if i >= 9 && i % 3 == 2 { c + 1.0 } else { c }).collect();
+        let constraints = Constraints {
+            contact_points: Some(points),
+            planes: vec![PlaneCollider {
+                point: Point3::new(0.0, 0.0, 0.01),
+                normal: Vector3::new(0.1, -0.2, 1.0).normalize(),
+                stiffness: 3e3,
+                damping: 0.0,
+                friction: 0.0,
+            }],
+            surface_contact: Some(SurfaceContact {
+                // Lower faces up, upper faces down: opposing.
+                triangles: vec![[0, 1, 2], [3, 4, 5]],
+                on_cut: Vec::new(),
+                stiffness: 1e4,
+                damping: 0.0,
+                friction: 0.0,
+                thickness: 0.0,
+                reach: 0.05,
+            }),
+            ..Default::default()
+        };
+        (constraints, x, rest)
+    }
+
+    #[test]
+    fn contact_forces_are_the_negative_gradient_of_the_contact_energy() {
+        let (constraints, x, rest) = setup();
+        let points = constraints.contact_points.as_ref().unwrap();
+        let mut set = ContactSet::new(&constraints, &rest);
+        set.detect(&constraints, &x, &vec![0.0; x.len()], 0.01, &Vector3::zeros());
+        let kinds = set.stats();
+        assert!(kinds.surface > 0 && kinds.planes > 0, "{kinds:?}");
+        let mut force = vec![0.0; x.len()];
+        add_forces(points, &set.contacts, &mut force);
+        let mut worst: Real = 0.0;
+        let scale = force.iter().map(|f| f.abs()).fold(0.0, Real::max);
+        for i in 0..x.len() {
+            let eps = 1e-7;
+            let (mut plus, mut minus) = (x.clone(), x.clone());
+            plus[i] += eps;
+            minus[i] -= eps;
+            let derivative =
+                (energy(points, &set.contacts, &plus).0 - energy(points, &set.contacts, &minus).0) / (2.0 * eps);
+            worst = worst.max((derivative + force[i]).abs());
+        }
+        println!("{kinds:?}; largest |dE/dx + f| = {worst:.2e} of |f| up to {scale:.2e}");
+        assert!(worst < 1e-6 * scale);
+    }
+
+    #[test]
+    fn surface_contact_forces_have_no_net_force_or_torque() {
+        let (mut constraints, x, rest) = setup();
+        constraints.planes.clear();
+        let points = constraints.contact_points.as_ref().unwrap().clone();
+        let mut set = ContactSet::new(&constraints, &rest);
+        set.detect(&constraints, &x, &vec![0.0; x.len()], 0.01, &Vector3::zeros());
+        assert!(set.stats().surface >= 1);
+        let mut force = vec![0.0; x.len()];
+        add_forces(&points, &set.contacts, &mut force);
+        // The implicit part as well: the action of the contact matrix on any velocity.
+        let v: Vec<Real> = (0..x.len()).map(|i| ((i * 7 % 5) as Real - 2.0) * 0.3).collect();
+        let mut action = vec![0.0; x.len()];
+        add_action(&points, &set.contacts, &v, &mut action);
+        for (what, f) in [("force", &force), ("matrix action", &action)] {
+            let (mut total, mut torque) = (Vector3::zeros(), Vector3::zeros());
+            let mut size: Real = 0.0;
+            for k in 0..6 {
+                let fk = Vector3::new(f[3 * k], f[3 * k + 1], f[3 * k + 2]);
+                total += fk;
+                torque += Vector3::new(x[3 * k], x[3 * k + 1], x[3 * k + 2]).cross(&fk);
+                size = size.max(fk.norm());
+            }
+            println!(
+                "{what}: net force {:.1e}, net torque {:.1e}, largest nodal force {size:.2e}",
+                total.norm(),
+                torque.norm()
+            );
+            assert!(size > 0.0 && total.norm() < 1e-12 * size && torque.norm() < 1e-12 * size, "{what}");
+        }
+    }
+}
