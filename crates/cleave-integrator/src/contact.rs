@@ -120,15 +120,25 @@ fn to_parry(p: &Point3<Real>) -> ParryVector {
 }
 
 /// The contact normal of point `q` against the triangle point `c` closest to it (at
-/// `distance`), the triangle having unit normal `n`: `n` when `c` is the orthogonal projection
-/// of `q` (up to rounding), so that the two forces act on one line (`q − c ∥ n`) and conserve
-/// angular momentum; none when `q` lies beyond the triangle's edges (it is the neighbouring
-/// triangle's; where no triangle's, an edge meets an edge, which vertex–triangle contact does
-/// not see: docs/math/contact.md §5).
-fn contact_normal(q: &Point3<Real>, c: &Point3<Real>, n: &Vector3<Real>, distance: Real) -> Option<Vector3<Real>> {
+/// `distance`), the triangle having unit normal `n`: `n` when `q` projects into the triangle
+/// or lies within `lateral` of it sideways (a vertex on a vertex of a coinciding face, where
+/// the deformed faces around it leave gaps between their projections), none when farther
+/// beyond its edges (it is the neighbouring triangle's; where no triangle's, an edge meets an
+/// edge, which vertex–triangle contact does not see: docs/math/contact.md §5). The force pair
+/// then acts on one line up to that sideways offset, which bounds its torque.
+fn contact_normal(
+    q: &Point3<Real>,
+    c: &Point3<Real>,
+    n: &Vector3<Real>,
+    distance: Real,
+    lateral: Real,
+) -> Option<Vector3<Real>> {
     let offset = q - c;
-    (distance == 0.0 || (offset - n * n.dot(&offset)).norm() <= 1e-9 * distance).then_some(*n)
+    (distance == 0.0 || (offset - n * n.dot(&offset)).norm() <= lateral.max(1e-9 * distance)).then_some(*n)
 }
+
+/// Sideways tolerance of [`contact_normal`], as a fraction of the reach.
+const LATERAL_FRACTION: Real = 0.05;
 
 /// `c_t / (μ λ)`: the lagged tangential damping per unit friction force.
 fn slip_coefficient(speed: Real) -> Real {
@@ -137,15 +147,16 @@ fn slip_coefficient(speed: Real) -> Real {
 }
 
 /// Builds the contact of a point at gap `d` along unit normal `n` with relative velocity `u`.
-/// Active when `d < 0` or when the prediction `d + h n·(u + h g)` is (gravity only for points
-/// not moving away, see the plane collider's documentation in `integrator.rs`).
+/// Active when `d` or the prediction `d + h n·(u + h g)` is below `touching` (0 for colliders,
+/// rounding level for the body's own surface; gravity only for points not moving away, see
+/// `Integrator::add_penalty_forces`).
 #[allow(clippy::too_many_arguments)]
 fn make_contact(
     point: u32,
     triangle: Option<([u32; 3], [Real; 3])>,
     (kind, slot, lagged_force): (ContactKind, u32, Real),
     n: Vector3<Real>,
-    (d, offset): (Real, Real),
+    (d, offset, touching): (Real, Real, Real),
     u: &Vector3<Real>,
     gravity_along: Real,
     h: Real,
@@ -154,7 +165,7 @@ fn make_contact(
     let approach = n.dot(u);
     let pulled = approach + h * gravity_along;
     let predicted = d + h * if approach <= 0.0 { pulled } else { approach };
-    if d.min(predicted) >= 0.0 {
+    if d.min(predicted) >= touching {
         return None;
     }
     // The normal force the last step's solution carried (a resting point sits at d ≈ 0, held
@@ -273,7 +284,7 @@ impl ContactSet {
                     let d = plane.normal.dot(&positions[i].coords) + offset;
                     let slot = k * n + i;
                     let which = (ContactKind::Plane, slot as u32, lagged[slot]);
-                    make_contact(i as u32, None, which, plane.normal, (d, offset), &velocities[i], g, h, params)
+                    make_contact(i as u32, None, which, plane.normal, (d, offset, 0.0), &velocities[i], g, h, params)
                 })
                 .collect();
             self.contacts.extend(found);
@@ -299,7 +310,7 @@ impl ContactSet {
                         None,
                         which,
                         normal,
-                        (d, -normal.dot(&c.coords)),
+                        (d, -normal.dot(&c.coords), 0.0),
                         u,
                         normal.dot(gravity),
                         h,
@@ -366,6 +377,7 @@ impl ContactSet {
         let mut per_point = std::mem::take(&mut self.per_point);
         let this = &*self;
         let params = (surface.stiffness, surface.damping, surface.friction);
+        let lateral = LATERAL_FRACTION * surface.reach;
         per_point.clear();
         per_point.resize(positions.len(), None);
         per_point.par_iter_mut().enumerate().for_each(|(i, slot)| {
@@ -399,7 +411,7 @@ impl ContactSet {
                 let corners = tri.map(|k| positions[k as usize]);
                 let (c, beta) = closest_point_on_triangle(&q, &corners);
                 let distance = (q - c).norm();
-                if contact_normal(&q, &c, &this.triangle_normals[t as usize], distance).is_none() {
+                if contact_normal(&q, &c, &this.triangle_normals[t as usize], distance, lateral).is_none() {
                     continue;
                 }
                 if this.component[i] == this.component[tri[0] as usize] && this.behind_at_rest(i, tri, &beta) {
@@ -414,7 +426,7 @@ impl ContactSet {
             // Along q − c, so the two forces act on one line and conserve angular momentum:
             // the triangle's normal where the point projects into it, else the direction from
             // the closest edge or corner, on the side the triangle's normal says.
-            let Some(normal) = contact_normal(&q, &c, &this.triangle_normals[t], distance) else { return };
+            let Some(normal) = contact_normal(&q, &c, &this.triangle_normals[t], distance, lateral) else { return };
             let other_velocity =
                 tri.iter().zip(&beta).fold(Vector3::zeros(), |s, (&k, &b)| s + velocities[k as usize] * b);
             let relative = u - other_velocity;
@@ -430,7 +442,9 @@ impl ContactSet {
                 return;
             }
             let which = (ContactKind::Surface, (first_slot + i) as u32, this.lagged[first_slot + i]);
-            let gap = (d, -surface.thickness);
+            // Touching counts (faces a cut has just separated coincide, and nothing else would
+            // hold the upper one up in the step after the cut), up to rounding of the gap.
+            let gap = (d, -surface.thickness, 1e-9 * surface.reach);
             *slot = make_contact(i as u32, Some((tri, beta)), which, normal, gap, &relative, 0.0, h, params);
         });
         self.contacts.extend(per_point.iter().flatten().copied());
@@ -523,7 +537,9 @@ pub(crate) fn energy(points: &Embedding, contacts: &[Contact], x: &[Real]) -> (R
 }
 
 /// The node groups of this step's contact rows whose couplings the pattern lacks (a point and
-/// a triangle of the body's surface that were never in contact before in this epoch).
+/// a triangle of the body's surface that were never in contact before in this epoch). Each
+/// group is the point's nodes with those of the triangle *and of the points around its
+/// vertices*, so that a point sliding on to a neighbouring triangle needs no new pattern.
 pub(crate) fn missing_couplings(points: &Embedding, set: &ContactSet, pattern: &AssemblyPattern) -> Vec<Vec<u32>> {
     let mut missing = Vec::new();
     let mut nodes: Vec<u32> = Vec::with_capacity(16);
@@ -531,7 +547,13 @@ pub(crate) fn missing_couplings(points: &Embedding, set: &ContactSet, pattern: &
         nodes.clear();
         for_each_entry(points, c, |n, _| nodes.push(n));
         if nodes.iter().any(|&j| nodes.iter().any(|&i| pattern.rank(i, j).is_none())) {
-            let mut group = nodes.clone();
+            let (vertices, _) = c.triangle.expect("filtered");
+            let mut group = points.row(c.point as usize).0.to_vec();
+            for &v in &vertices {
+                for &around in &set.ring[set.ring_offsets[v as usize]..set.ring_offsets[v as usize + 1]] {
+                    group.extend_from_slice(points.row(around as usize).0);
+                }
+            }
             group.sort_unstable();
             group.dedup();
             missing.push(group);
@@ -586,14 +608,16 @@ impl MeshCollider {
             let corners = self.triangles[t as usize].map(|k| self.vertices[k as usize]);
             let (c, _) = closest_point_on_triangle(q, &corners);
             let distance = (q - c).norm();
-            if contact_normal(q, &c, &self.normals[t as usize], distance).is_none() {
+            if contact_normal(q, &c, &self.normals[t as usize], distance, LATERAL_FRACTION * self.reach).is_none() {
                 continue;
             }
             if distance <= radius && best.is_none_or(|b| distance < b.0) {
                 best = Some((distance, c, t as usize));
             }
         }
-        best.and_then(|(distance, c, t)| Some((c, contact_normal(q, &c, &self.normals[t], distance)?)))
+        best.and_then(|(distance, c, t)| {
+            Some((c, contact_normal(q, &c, &self.normals[t], distance, LATERAL_FRACTION * self.reach)?))
+        })
     }
 }
 

@@ -167,8 +167,8 @@ impl VirtualNodeMesh {
     /// T-junctions resolved within each piece, fanned into triangles from each face's vertex
     /// average.
     ///
-    /// A triangle of the carved surface whose lattice tetrahedra no cut has touched (each holds
-    /// one duplicate without cut faces) is drawn whole, each vertex embedded in the tetrahedron
+    /// A triangle of the carved surface no longer than the lattice spacing whose lattice
+    /// tetrahedra no cut has touched (each holds one duplicate without cut faces) is drawn whole, each vertex embedded in the tetrahedron
     /// containing it, instead of as its clipped pieces: the field is continuous across those
     /// tetrahedra, and clipping every triangle to every tetrahedron multiplies the triangle
     /// count by 20 on the bunny. Vertices are shared where they are the same material point: the
@@ -214,6 +214,13 @@ impl VirtualNodeMesh {
             .map(|i| {
                 let tets = &source.tets_of_triangle[i];
                 if tets.is_empty() || !tets.iter().all(|&t| untouched[t as usize]) {
+                    return None;
+                }
+                // A triangle larger than the lattice is clipped anyway: its vertices are the
+                // contact points, and a box's face drawn as two triangles would touch the ground
+                // at its corners only.
+                let [a, b, c] = source.triangles[i];
+                if (b - a).norm().max((c - b).norm()).max((a - c).norm()) > h {
                     return None;
                 }
                 let corners = source.triangles[i].map(|p| locate(i as u32, &p).0);

@@ -165,21 +165,69 @@ fn cut_area_of_an_axis_plane_is_twice_the_cross_section() {
     assert!((area[0] - 2.0 * (x * y + y * z + z * x)).abs() < 1e-12);
 }
 
+/// The box's surface with every face split into a grid of `n × n` squares, two triangles each.
+fn fine_box(lo: Point3<Real>, hi: Point3<Real>, n: usize) -> cleave_geometry::TriangleMesh {
+    let coarse = cleave_virtualnode::box_surface(lo, hi);
+    let mut vertices = Vec::new();
+    let mut triangles = Vec::new();
+    // Each coarse face is two triangles (a, b, c) and (a, c, d) over one quad: rebuild the quad.
+    for pair in coarse.triangles.chunks_exact(2) {
+        let [a, b, c] = pair[0].map(|v| coarse.vertices[v as usize]);
+        let d = coarse.vertices[pair[1][2] as usize];
+        let at = |i: usize, j: usize| {
+            let (u, v) = (i as Real / n as Real, j as Real / n as Real);
+            a + (b - a) * u + (d - a) * v + (c - b - (d - a)) * (u * v)
+        };
+        let base = vertices.len() as u32;
+        for j in 0..=n {
+            for i in 0..=n {
+                vertices.push(at(i, j));
+            }
+        }
+        let id = |i: usize, j: usize| base + (j * (n + 1) + i) as u32;
+        for j in 0..n {
+            for i in 0..n {
+                triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+    }
+    // Faces share their edges' points: weld them (rounded to 1e-12 m).
+    let mut index: HashMap<[i64; 3], u32> = HashMap::new();
+    let mut welded = Vec::new();
+    let map: Vec<u32> = vertices
+        .iter()
+        .map(|p| {
+            let key = [p.x, p.y, p.z].map(|c| (c * 1e12).round() as i64);
+            *index.entry(key).or_insert_with(|| {
+                welded.push(*p);
+                welded.len() as u32 - 1
+            })
+        })
+        .collect();
+    let triangles = triangles.into_iter().map(|t| t.map(|v| map[v as usize])).collect();
+    cleave_geometry::TriangleMesh::new(welded, triangles)
+}
+
 #[test]
 fn triangles_no_cut_touched_are_drawn_whole() {
-    // The carved box's surface is its 12 triangles as they are (box_surface has 12), not their
-    // pieces clipped to each lattice tetrahedron.
-    let mut mesh = block();
+    // A box whose faces are triangles smaller than the lattice: carved and uncut, its surface
+    // is exactly its own triangles, not their pieces clipped to each lattice tetrahedron. (The
+    // two-triangle faces of `box_surface` are longer than the lattice and always clipped.)
+    let (lo, hi) = (Point3::new(0.013, -0.37, 0.2), Point3::new(0.733, 0.05, 0.62));
+    let source = fine_box(lo, hi, 12);
+    let material = Material::new(1e5, 0.3, 1000.0).unwrap();
+    let mut mesh = VirtualNodeMesh::carve(&source, 0.09, material).unwrap();
     let s = mesh.render_surface();
-    assert_eq!(s.triangles.len(), 12);
+    assert!(source.validate_closed().is_ok());
+    assert_eq!(s.triangles.len(), source.triangles.len());
     // A cut through one corner clips only the triangles whose tetrahedra it touches. The far
-    // faces (x = 0.731, y = 0.05) stay whole: points where the clipped neighbours' pieces meet
-    // their edges are inserted there (no T-junction), but no vertex lies inside them apart from
-    // the centre each fanned triangle gets (a clipped face would have one per tet face crossed).
+    // faces (x = hi.x, y = hi.y) stay whole: points where clipped neighbours meet their edges
+    // are inserted there (no T-junction), but no vertex lies inside them apart from the grid's
+    // own (a clipped face would have one per tetrahedron face crossed).
     mesh.cut(&CutSurface::Plane { point: Point3::new(0.1, -0.3, 0.0), normal: Vector3::new(1.0, 1.0, 0.0) }).unwrap();
     let s = mesh.render_surface();
     let interior_vertices = |axis: usize, value: Real| {
-        let (lo, hi) = ([0.013, -0.37, 0.2], [0.731, 0.05, 0.66]);
         let mut inside: Vec<u32> = s
             .triangles
             .iter()
@@ -195,12 +243,12 @@ fn triangles_no_cut_touched_are_drawn_whole() {
         inside.dedup();
         inside.len()
     };
-    let (far_x, far_y, cut_side) =
-        (interior_vertices(0, 0.731), interior_vertices(1, 0.05), interior_vertices(2, 0.66));
+    let grid_interior = 11 * 11;
+    let (far_x, far_y, cut_side) = (interior_vertices(0, hi.x), interior_vertices(1, hi.y), interior_vertices(2, hi.z));
     println!(
-        "after the corner cut: {} triangles; interior vertices: x = 0.731 face {far_x}, y = 0.05 face {far_y}, z = 0.66 face {cut_side}",
+        "after the corner cut: {} triangles; interior vertices: x = hi face {far_x}, y = hi face {far_y} (grid {grid_interior}), z = hi face {cut_side}",
         s.triangles.len()
     );
-    assert!(far_x <= 2 && far_y <= 2);
-    assert!(cut_side > 10, "the face the cut crosses is clipped");
+    assert!(far_x == grid_interior && far_y == grid_interior);
+    assert!(cut_side > grid_interior + 10, "the face the cut crosses is clipped");
 }
