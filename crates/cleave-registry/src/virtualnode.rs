@@ -1,17 +1,20 @@
 //! The virtual node backend (sifakis2007): its scene settings and its comparison variant. A
 //! closed surface (or box) is carved out of a BCC lattice by the same algorithm that cuts; the
 //! backend is nodal, so pins hold every node copy whose rest position lies in a pin region, and
-//! are resolved again after every cut.
+//! are resolved again after every cut. The comparison's Dirichlet data goes to every node of
+//! every duplicate whose region has a face on the Dirichlet boundary ([`carved_dirichlet`]),
+//! virtual nodes outside the box included.
 
 use crate::backend::{
     Backend, BackendError, BuiltSolid, Capabilities, RestSurface, Shape, SolidRequest, cell_size_for, one_size,
     parse_settings,
 };
-use cleave_core::{Material, Point3, Real};
+use cleave_core::{Discretization, Material, Point3, Real};
 use cleave_testkit::compare::{
     BoxGrid, BuildError, BuiltProblem, CompareBackend, DirichletSpec, ExtremeCase, NotApplicable, corner_pushed_in,
-    nodal_problem, stretch_start,
+    stretch_start,
 };
+use cleave_virtualnode::arrangement::Cover;
 use cleave_virtualnode::{VirtualNodeMesh, box_surface};
 
 /// Registration of `cleave-virtualnode`: one variant, corotated linear tetrahedra on a BCC lattice.
@@ -92,7 +95,14 @@ impl CompareBackend for VirtualNodeBackend {
         let mesh = VirtualNodeMesh::from_box(grid.origin, grid.max_corner(), grid.h, *material)
             .map_err(|e| BuildError(e.to_string()))?;
         let elements = mesh.num_duplicates();
-        Ok(nodal_problem(Box::new(mesh), elements, dirichlet))
+        let prescribed = carved_dirichlet(&mesh, dirichlet);
+        Ok(BuiltProblem {
+            discretization: Box::new(mesh),
+            prescribed,
+            dirichlet_load: Vec::new(),
+            elements,
+            search_seconds: 0.0,
+        })
     }
 
     fn extreme_start(
@@ -110,4 +120,46 @@ impl CompareBackend for VirtualNodeBackend {
             ExtremeCase::Stretch100 => Ok(stretch_start(built, grid)),
         }
     }
+}
+
+/// Dirichlet data of a carved box, prescribed strongly and consistently. BCC tetrahedra straddle
+/// the box's faces, so a duplicate at the boundary has node copies outside the box (virtual
+/// nodes). Pinning only the nodes that lie on the boundary leaves those free, and the free
+/// nodes' shape functions do not vanish on the boundary: the data is then imposed only in part
+/// (measured: L2 rates 0.9 and 1.2 on the manufactured solutions, the cantilever 0.5 % soft).
+/// Here every node of every duplicate whose region has a face on the Dirichlet part (an
+/// object-surface face all of whose vertices satisfy `dirichlet.region`) gets `dirichlet.value`
+/// at its rest position (its lattice node's, outside the box for a virtual node; the
+/// manufactured solutions extend smoothly there, and a clamp is zero), and so does every node
+/// lying on the Dirichlet part itself. Every free node then belongs only to duplicates that do
+/// not touch the Dirichlet part, so its shape function vanishes there and the exact solution
+/// satisfies the discrete equations up to interpolation: linear tetrahedra converge at rate 2 in
+/// L2 again.
+pub fn carved_dirichlet(mesh: &VirtualNodeMesh, dirichlet: &DirichletSpec) -> Vec<(usize, Real)> {
+    let rest = mesh.rest_dofs();
+    let mut prescribed_node = vec![false; mesh.num_nodes()];
+    for (node, p) in rest.chunks_exact(3).enumerate() {
+        prescribed_node[node] = (dirichlet.region)(&Point3::new(p[0], p[1], p[2]));
+    }
+    for d in 0..mesh.num_duplicates() {
+        let cells = mesh.duplicate_cells(d);
+        let touches = cells.cells.iter().flat_map(|c| &c.faces).any(|face| {
+            face.cover == Cover::Surface
+                && face.verts.len() >= 3
+                && face.verts.iter().all(|&v| (dirichlet.region)(&cells.point(v)))
+        });
+        if touches {
+            for node in mesh.duplicate_nodes_of(d) {
+                prescribed_node[node as usize] = true;
+            }
+        }
+    }
+    let mut prescribed = Vec::new();
+    for (node, p) in rest.chunks_exact(3).enumerate() {
+        if prescribed_node[node] {
+            let u = (dirichlet.value)(&Point3::new(p[0], p[1], p[2]));
+            prescribed.extend((0..3).map(|c| (3 * node + c, u[c])));
+        }
+    }
+    prescribed
 }
