@@ -113,7 +113,11 @@ pub fn stability(args: StabilityArgs) -> Result<()> {
          from the start) never exceeds E(0) by more than {:.0}% of the run's energy scale, the largest of \
          |E(0)|, kinetic + elastic and the gravitational work over the run (a start from rest has E(0) = 0, so \
          a bare ratio to E(0) would be meaningless). A failure names its mode and step; *×N* is \
-         1 + max(E − E(0))/scale. Extreme cases run at E = 1e6 Pa, ν = 0.3, h = 1/60 s. Every backend runs \
+         1 + max(E − E(0))/scale. Extreme cases run at E = 1e6 Pa, ν = 0.3, h = 1/60 s; a backend whose \
+         slivers come from cutting runs the sliver case on a beam it cuts first (`CompareBackend::build_extreme`; \
+         virtual node tets: `cleave_registry::sliver_beam`, a crack 1e-5 h from a lattice node plane leaving \
+         regions down to 2.0e-15 of a lattice tetrahedron, `crates/cleave-registry/tests/virtualnode_sliver.rs`). \
+         Every backend runs \
          with its defaults (for DG the paper's penalty rule); what the ν = 0.4999 row measured before \
          and after the corotated Dirichlet fix is in `docs/math/dg.md` §9. Raw cells: \
          [`stability.csv`](stability.csv).\n",
