@@ -670,3 +670,59 @@ fn static_timing_cells(r: &Row) -> String {
         mb(r.peak_rss_mb)
     )
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table1_rows_round_trip_and_failures_keep_their_message() {
+        let ok: Table1Row = (
+            "dg".into(),
+            "ip-2".into(),
+            Ok(Table1Timings {
+                integration: 0.25,
+                assembly: 0.125,
+                pattern: 0.5,
+                solve: 3.0,
+                search: 4.5,
+                dofs: 30000,
+                nnz: 5_760_000,
+                factor_nnz: 38_203_200,
+            }),
+        );
+        let failed: Table1Row = ("voxel".into(), "trilinear".into(), Err("solve failed: pivot 3, not positive".into()));
+        assert_eq!(table1_from_csv(&table1_to_csv(&ok)), Some(ok));
+        let back = table1_from_csv(&table1_to_csv(&failed)).unwrap();
+        assert_eq!(back.2, Err("solve failed: pivot 3; not positive".to_string()));
+        assert_eq!(table1_to_csv(&failed).split(',').count(), TABLE1_HEADER.split(',').count());
+    }
+
+    #[test]
+    fn stop_lines_are_read_back_with_their_method_and_problem() {
+        let dir = std::env::temp_dir().join(format!("cleave-stops-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("compare.md");
+        fs::write(
+            &path,
+            "# x\n\n## How each study stopped\n\n- voxel/trilinear cantilever: 5 levels, stopped by budget: n = 32\n- dg/ip-2 mms-sin111: 4 levels, stopped by level cap n ≤ 8\n\n## Later\n\n- not/a stop: line\n",
+        )
+        .unwrap();
+        let stops = previous_stops(&path);
+        fs::remove_dir_all(&dir).unwrap();
+        let keys: Vec<(&str, &str)> = stops.iter().map(|(m, p, _)| (m.as_str(), p.as_str())).collect();
+        assert_eq!(keys, vec![("voxel/trilinear", "cantilever"), ("dg/ip-2", "mms-sin111")]);
+        assert_eq!(stops[0].2, "voxel/trilinear cantilever: 5 levels, stopped by budget: n = 32");
+    }
+
+    #[test]
+    fn problem_names_select_studies_table1_and_cutting() {
+        let s = selection(&["cutting".into(), "mms".into()]).unwrap();
+        assert_eq!(s.problems, vec![Problem::MmsSin111, Problem::MmsCos123]);
+        assert!(s.cutting && !s.table1);
+        let all = selection(&["all".into()]).unwrap();
+        assert_eq!(all.problems, Problem::ALL.to_vec());
+        assert!(all.cutting && all.table1);
+        assert!(selection(&["cuts".into()]).is_err());
+    }
+}

@@ -220,3 +220,30 @@ pub fn section(rows: &[CutRow], order: &[String], cannot_cut: &[String], errors:
     }
     md
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_row_round_trips_through_its_csv_line() {
+        let row = CutRow {
+            backend: "virtualnode".into(),
+            element_size: 0.02,
+            elements: (3518, 4744),
+            nodes: (894, 1539),
+            pieces: 6,
+            changes: 26,
+            ms_per_change: 85.5,
+            volume_drift: 1.8e-15,
+            mass_drift: -1.7e-15,
+            steps_per_second: (9.2, 42.1),
+            steps: (26, 214),
+        };
+        let line = row.to_csv();
+        assert_eq!(line.split(',').count(), CSV_HEADER.split(',').count());
+        assert_eq!(CutRow::from_csv(&line).unwrap(), row);
+        let error = CutRow::from_csv("virtualnode,0.02,x,1,1,1,1,1,1,1,1,1,1,1,1").unwrap_err();
+        assert!(error.contains("elements_before"), "{error}");
+    }
+}

@@ -222,3 +222,26 @@ fn previous_sections(path: &Path) -> Vec<(String, String)> {
     }
     sections
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sections_are_split_at_their_headings() {
+        let dir = std::env::temp_dir().join(format!("cleave-stability-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("stability.md");
+        fs::write(
+            &path,
+            "# Stability grid\n\nintro\n\n## voxel/trilinear: 60 pass\n\n| a |\n\n## dg/bz-1: 59 pass\n\n| b |\n",
+        )
+        .unwrap();
+        let sections = previous_sections(&path);
+        fs::remove_dir_all(&dir).unwrap();
+        let names: Vec<&str> = sections.iter().map(|(m, _)| m.as_str()).collect();
+        assert_eq!(names, vec!["voxel/trilinear", "dg/bz-1"]);
+        assert_eq!(sections[0].1, "## voxel/trilinear: 60 pass\n\n| a |\n\n");
+        assert_eq!(sections[1].1, "## dg/bz-1: 59 pass\n\n| b |\n");
+    }
+}
