@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Checks that the CSV outputs of `cargo xtask compare --quick` and `cargo xtask stability --quick`
 parse: the stated header, numbers (or empty cells) where numbers belong, every quick study present,
-and the whole stability grid with a verdict in every cell. Usage: check_results.py DIR."""
+the whole stability grid with a verdict in every cell, Table 1 timings, and the cut table of
+bunny_slice.ron (a virtualnode row that cut into at least three pieces and kept volume and mass
+to 1e-12). Usage: check_results.py DIR."""
 import csv
 import math
 import sys
@@ -53,7 +55,30 @@ def main(directory):
             if c["passed"] not in ("true", "false") or not c["verdict"]:
                 raise SystemExit(f"stability.csv: malformed cell {c}")
             number(c["max_energy_factor"], "max_energy_factor", 0)
-    print(f"results parse: {len(rows)} compare rows, {len(cells)} stability cells for {len(methods)} method(s)")
+
+    with open(directory / "table1.csv", newline="") as f:
+        table1 = list(csv.DictReader(f))
+    for t in table1:
+        if t["error"]:
+            raise SystemExit(f"table1.csv: {t['backend']}/{t['variant']} failed: {t['error']}")
+        for column in ("integration", "pattern", "assembly", "solve", "search"):
+            if number(t[column], column, 0) is None:
+                raise SystemExit(f"table1.csv: {t['backend']}/{t['variant']} has no {column}")
+    if not any(t["backend"] == "voxel" for t in table1):
+        raise SystemExit("table1.csv has no voxel row")
+
+    with open(directory / "cutting.csv", newline="") as f:
+        cuts = {c["backend"]: c for c in csv.DictReader(f)}
+    vn = cuts.get("virtualnode")
+    if vn is None:
+        raise SystemExit(f"cutting.csv has no virtualnode row (rows: {sorted(cuts)})")
+    for column in ("volume_drift", "mass_drift"):
+        if abs(number(vn[column], column, 0)) > 1e-12:
+            raise SystemExit(f"cutting.csv: virtualnode {column} = {vn[column]} > 1e-12")
+    if int(vn["pieces"]) < 3 or int(vn["changes"]) <= 0 or int(vn["elements_after"]) <= int(vn["elements_before"]):
+        raise SystemExit(f"cutting.csv: virtualnode row does not show the cuts: {vn}")
+    print(f"results parse: {len(rows)} compare rows, {len(cells)} stability cells for {len(methods)} method(s), "
+          f"{len(table1)} Table 1 rows, {len(cuts)} cut row(s)")
 
 
 if __name__ == "__main__":

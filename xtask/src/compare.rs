@@ -1,7 +1,11 @@
 //! `cargo xtask compare`: runs the budgeted refinement studies of every registered backend
-//! (`cleave_registry`), appends each finished run to the CSV at once, and writes the Markdown
-//! report and the plots. The studies themselves live in `cleave_testkit::compare`.
+//! (`cleave_registry`), appends each finished run to the CSV at once, times kaufmann2008's
+//! Table 1, runs the cutting scene on every backend that can cut (`crate::cutting`), and writes
+//! the Markdown report and the plots. The studies themselves live in `cleave_testkit::compare`.
+//! An invocation redoes only what it selects: rows, Table 1 timings, cut rows and the lines of
+//! "How each study stopped" of other backends and problems are kept from the previous files.
 
+use crate::cutting::{self, CutRow};
 use crate::machine::{RssProbe, machine_line};
 use crate::plots;
 use anyhow::{Context, Result, bail};
@@ -21,8 +25,8 @@ use std::path::{Path, PathBuf};
 pub struct CompareArgs {
     /// Small levels only (CI).
     pub quick: bool,
-    /// "mms", "cantilever", "dynamic" or "all".
-    pub problem: String,
+    /// Any of "mms", "cantilever", "dynamic", "table1", "cutting", or "all".
+    pub problems: Vec<String>,
     /// Backends to run (empty = all registered).
     pub backends: Vec<String>,
     /// Seconds per (method, problem) study.
@@ -35,14 +39,98 @@ pub struct CompareArgs {
     pub quiet: bool,
 }
 
-fn selected_problems(name: &str) -> Result<Vec<Problem>> {
-    Ok(match name {
-        "all" => Problem::ALL.to_vec(),
-        "mms" => vec![Problem::MmsSin111, Problem::MmsCos123],
-        "cantilever" => vec![Problem::Cantilever],
-        "dynamic" => vec![Problem::Dynamic],
-        other => bail!("unknown problem {other:?}: expected mms, cantilever, dynamic or all"),
-    })
+/// What one invocation runs.
+struct Selection {
+    /// Refinement studies, in report order.
+    problems: Vec<Problem>,
+    /// kaufmann2008 Table 1 timings.
+    table1: bool,
+    /// The cutting scene on the backends that can cut.
+    cutting: bool,
+}
+
+fn selection(names: &[String]) -> Result<Selection> {
+    let (mut problems, mut table1, mut cutting) = (Vec::new(), false, false);
+    for name in names {
+        match name.as_str() {
+            "all" => {
+                problems.extend(Problem::ALL);
+                table1 = true;
+                cutting = true;
+            }
+            "mms" => problems.extend([Problem::MmsSin111, Problem::MmsCos123]),
+            "cantilever" => problems.push(Problem::Cantilever),
+            "dynamic" => problems.push(Problem::Dynamic),
+            "table1" => table1 = true,
+            "cutting" => cutting = true,
+            other => bail!("unknown problem {other:?}: expected mms, cantilever, dynamic, table1, cutting or all"),
+        }
+    }
+    let problems = Problem::ALL.into_iter().filter(|p| problems.contains(p)).collect();
+    Ok(Selection { problems, table1, cutting })
+}
+
+/// Header of `table1.csv`: one row per method, kept for methods an invocation does not time.
+const TABLE1_HEADER: &str = "backend,variant,integration,pattern,assembly,solve,search,dofs,nnz,factor_nnz,error";
+
+type Table1Row = (String, String, Result<Table1Timings, String>);
+
+fn table1_to_csv((backend, variant, timing): &Table1Row) -> String {
+    match timing {
+        Ok(t) => format!(
+            "{backend},{variant},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{},{},{},",
+            t.integration, t.pattern, t.assembly, t.solve, t.search, t.dofs, t.nnz, t.factor_nnz
+        ),
+        Err(e) => format!("{backend},{variant},,,,,,,,,{}", e.replace([',', '\n'], ";")),
+    }
+}
+
+fn table1_from_csv(line: &str) -> Option<Table1Row> {
+    let f: Vec<&str> = line.trim_end().splitn(11, ',').collect();
+    let [backend, variant, integration, pattern, assembly, solve, search, dofs, nnz, factor_nnz, error] = f.as_slice()
+    else {
+        return None;
+    };
+    let timing = if error.is_empty() {
+        Ok(Table1Timings {
+            integration: integration.parse().ok()?,
+            pattern: pattern.parse().ok()?,
+            assembly: assembly.parse().ok()?,
+            solve: solve.parse().ok()?,
+            search: search.parse().ok()?,
+            dofs: dofs.parse().ok()?,
+            nnz: nnz.parse().ok()?,
+            factor_nnz: factor_nnz.parse().ok()?,
+        })
+    } else {
+        Err(error.to_string())
+    };
+    Some((backend.to_string(), variant.to_string(), timing))
+}
+
+fn read_table1(path: &Path) -> Vec<Table1Row> {
+    let Ok(text) = fs::read_to_string(path) else { return Vec::new() };
+    let mut lines = text.lines();
+    if lines.next().map(str::trim_end) != Some(TABLE1_HEADER) {
+        return Vec::new();
+    }
+    lines.filter_map(table1_from_csv).collect()
+}
+
+/// The lines of "How each study stopped" in a previous report, as `(method, problem key, line)`.
+fn previous_stops(path: &Path) -> Vec<(String, String, String)> {
+    let Ok(text) = fs::read_to_string(path) else { return Vec::new() };
+    text.lines()
+        .skip_while(|l| l.trim() != "## How each study stopped")
+        .skip(1)
+        .take_while(|l| !l.starts_with("## "))
+        .filter_map(|l| {
+            let line = l.strip_prefix("- ")?;
+            let (head, _) = line.split_once(':')?;
+            let (method, problem) = head.split_once(' ')?;
+            Some((method.to_string(), problem.to_string(), line.to_string()))
+        })
+        .collect()
 }
 
 /// The registered backends named in `names` (all if empty); unknown names are an error that
@@ -133,7 +221,8 @@ impl StudyObserver for Observer<'_> {
 
 /// Runs `cargo xtask compare`.
 pub fn compare(args: CompareArgs) -> Result<()> {
-    let problems = selected_problems(&args.problem)?;
+    let selection = selection(&args.problems)?;
+    let problems = selection.problems.clone();
     let chosen = selected_backends(&args.backends)?;
     fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let csv_path = args.out.join("compare.csv");
@@ -143,6 +232,14 @@ pub fn compare(args: CompareArgs) -> Result<()> {
         problems.iter().any(|p| p.key() == r.problem) && methods.iter().any(|(b, v)| *b == r.backend && *v == r.variant)
     };
     let (mut csv, kept) = CsvAppender::open(&csv_path, &redo)?;
+    let md_path = args.out.join("compare.md");
+    let mut stops: Vec<String> = previous_stops(&md_path)
+        .into_iter()
+        .filter(|(method, problem, _)| {
+            !(problems.iter().any(|p| p.key() == problem) && methods.iter().any(|(b, v)| *method == format!("{b}/{v}")))
+        })
+        .map(|(_, _, line)| line)
+        .collect();
 
     let studies = (methods.len() * problems.len()) as u64;
     let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(studies) };
@@ -152,7 +249,6 @@ pub fn compare(args: CompareArgs) -> Result<()> {
             .progress_chars("=> "),
     );
     let mut rows = kept;
-    let mut stops = Vec::new();
     for backend in &chosen {
         for variant in backend.variants() {
             for &problem in &problems {
@@ -180,19 +276,54 @@ pub fn compare(args: CompareArgs) -> Result<()> {
             }
         }
     }
-    bar.set_message("Table 1 timings");
-    let mut table1 = Vec::new();
-    for backend in &chosen {
-        for variant in backend.variants() {
-            let timing = table1_timings(backend.as_ref(), &variant, 3);
-            table1.push((backend.name().to_string(), variant, timing.map_err(|e| e.to_string())));
+    let table1_path = args.out.join("table1.csv");
+    let mut table1: Vec<Table1Row> = read_table1(&table1_path);
+    if selection.table1 {
+        bar.set_message("Table 1 timings");
+        table1.retain(|(b, v, _)| !methods.iter().any(|(mb, mv)| mb == b && mv == v));
+        for backend in &chosen {
+            for variant in backend.variants() {
+                let timing = table1_timings(backend.as_ref(), &variant, 3);
+                table1.push((backend.name().to_string(), variant, timing.map_err(|e| e.to_string())));
+            }
         }
+        let text: String = std::iter::once(TABLE1_HEADER.to_string())
+            .chain(table1.iter().map(table1_to_csv))
+            .collect::<Vec<_>>()
+            .join("\n");
+        fs::write(&table1_path, text + "\n").with_context(|| format!("writing {}", table1_path.display()))?;
+    }
+
+    let cutting_path = args.out.join("cutting.csv");
+    let mut cut_rows: Vec<CutRow> = cutting::read_rows(&cutting_path);
+    let mut cut_errors = Vec::new();
+    let registered = cleave_registry::registered();
+    if selection.cutting {
+        for backend in &chosen {
+            let can_cut = registered.iter().any(|r| r.name() == backend.name() && r.capabilities().cut);
+            if !can_cut {
+                continue;
+            }
+            bar.set_message(format!("cutting {} on {}", cutting::SCENE, backend.name()));
+            cut_rows.retain(|r| r.backend != backend.name());
+            match cutting::run(backend.name()) {
+                Ok(row) => cut_rows.push(row),
+                Err(e) => {
+                    let chain: Vec<String> = e.chain().map(ToString::to_string).collect();
+                    cut_errors.push((backend.name().to_string(), chain.join(": ")));
+                }
+            }
+        }
+        cutting::write_rows(&cutting_path, &cut_rows)?;
     }
     bar.finish_and_clear();
+    let order: Vec<String> = registered.iter().map(|r| r.name().to_string()).collect();
+    let cannot_cut: Vec<String> =
+        registered.iter().filter(|r| !r.capabilities().cut).map(|r| r.name().to_string()).collect();
+    let cut_section = cutting::section(&cut_rows, &order, &cannot_cut, &cut_errors);
 
-    let report = report(&args, &rows, &stops, &table1);
+    let report = report(&args, &rows, &stops, &table1, &cut_section);
     println!("{report}");
-    let md_path = args.out.join("compare.md");
     fs::write(&md_path, &report).with_context(|| format!("writing {}", md_path.display()))?;
     let written = plots::compare_plots(&rows, &args.out)?;
     println!("wrote {}, {} and {}", csv_path.display(), md_path.display(), written.join(", "));
@@ -247,12 +378,7 @@ pub fn tip_error(row: &Row, reference: &TipReference) -> Option<f64> {
     row.tip_uz_avg.map(|t| ((t - reference.value) / reference.value).abs())
 }
 
-fn report(
-    args: &CompareArgs,
-    rows: &[Row],
-    stops: &[String],
-    table1: &[(String, String, Result<Table1Timings, String>)],
-) -> String {
+fn report(args: &CompareArgs, rows: &[Row], stops: &[String], table1: &[Table1Row], cut_section: &str) -> String {
     let mut md = String::new();
     let w = &mut md;
     let _ = writeln!(w, "# Backend comparison\n");
@@ -481,7 +607,8 @@ fn report(
          stored entries of the assembled matrix: ours keeps full 3×3 node blocks, so BZ, whose penalty couples \
          neighbours component by component, stores the same pattern as IP, while the paper's 0.28% counts only \
          BZ's nonzeros. The paper's column was measured on a Core2 Duo 2.4 GHz; ours are medians of 3 runs on \
-         the machine named above (`cleave_testkit::compare::table1_timings`).\n"
+         the machine named above (`cleave_testkit::compare::table1_timings`), each method's row from the last \
+         invocation that timed it (`--problem table1` or `all`; [`table1.csv`](table1.csv)).\n"
     );
     let _ = writeln!(
         w,
@@ -507,7 +634,7 @@ fn report(
             )
         }
         Some(Err(e)) => format!("failed: {} | | | | | | | | ", e.replace('|', "/")),
-        None => "not registered yet | | | | | | | | ".into(),
+        None => "not timed yet | | | | | | | | ".into(),
     };
     for (label, backend, variant, sparsity, [i, a, s]) in KAUFMANN2008_TABLE1 {
         let _ = writeln!(
@@ -523,6 +650,7 @@ fn report(
         }
     }
     let _ = writeln!(w);
+    let _ = write!(w, "{cut_section}");
     let _ = writeln!(w, "## How each study stopped\n");
     for s in stops {
         let _ = writeln!(w, "- {s}");
@@ -541,4 +669,60 @@ fn static_timing_cells(r: &Row) -> String {
         r.repetitions,
         mb(r.peak_rss_mb)
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table1_rows_round_trip_and_failures_keep_their_message() {
+        let ok: Table1Row = (
+            "dg".into(),
+            "ip-2".into(),
+            Ok(Table1Timings {
+                integration: 0.25,
+                assembly: 0.125,
+                pattern: 0.5,
+                solve: 3.0,
+                search: 4.5,
+                dofs: 30000,
+                nnz: 5_760_000,
+                factor_nnz: 38_203_200,
+            }),
+        );
+        let failed: Table1Row = ("voxel".into(), "trilinear".into(), Err("solve failed: pivot 3, not positive".into()));
+        assert_eq!(table1_from_csv(&table1_to_csv(&ok)), Some(ok));
+        let back = table1_from_csv(&table1_to_csv(&failed)).unwrap();
+        assert_eq!(back.2, Err("solve failed: pivot 3; not positive".to_string()));
+        assert_eq!(table1_to_csv(&failed).split(',').count(), TABLE1_HEADER.split(',').count());
+    }
+
+    #[test]
+    fn stop_lines_are_read_back_with_their_method_and_problem() {
+        let dir = std::env::temp_dir().join(format!("cleave-stops-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("compare.md");
+        fs::write(
+            &path,
+            "# x\n\n## How each study stopped\n\n- voxel/trilinear cantilever: 5 levels, stopped by budget: n = 32\n- dg/ip-2 mms-sin111: 4 levels, stopped by level cap n ≤ 8\n\n## Later\n\n- not/a stop: line\n",
+        )
+        .unwrap();
+        let stops = previous_stops(&path);
+        fs::remove_dir_all(&dir).unwrap();
+        let keys: Vec<(&str, &str)> = stops.iter().map(|(m, p, _)| (m.as_str(), p.as_str())).collect();
+        assert_eq!(keys, vec![("voxel/trilinear", "cantilever"), ("dg/ip-2", "mms-sin111")]);
+        assert_eq!(stops[0].2, "voxel/trilinear cantilever: 5 levels, stopped by budget: n = 32");
+    }
+
+    #[test]
+    fn problem_names_select_studies_table1_and_cutting() {
+        let s = selection(&["cutting".into(), "mms".into()]).unwrap();
+        assert_eq!(s.problems, vec![Problem::MmsSin111, Problem::MmsCos123]);
+        assert!(s.cutting && !s.table1);
+        let all = selection(&["all".into()]).unwrap();
+        assert_eq!(all.problems, Problem::ALL.to_vec());
+        assert!(all.cutting && all.table1);
+        assert!(selection(&["cuts".into()]).is_err());
+    }
 }

@@ -2,6 +2,7 @@
 //! plots and files; everything else lives in the library crates.
 
 mod compare;
+mod cutting;
 mod machine;
 mod plots;
 mod stability;
@@ -51,9 +52,12 @@ enum Command {
         /// Small levels only (CI); writes to target/ci unless --out is given.
         #[arg(long)]
         quick: bool,
-        /// mms, cantilever, dynamic or all.
-        #[arg(long, default_value = "all")]
-        problem: String,
+        /// What to run: any of mms, cantilever, dynamic (refinement studies), table1
+        /// (kaufmann2008 Table 1 timings), cutting (the timeline of scenes/bunny_slice.ron on
+        /// every selected backend that can cut), or all. What is not selected is kept from the
+        /// previous compare.csv, table1.csv, cutting.csv and compare.md.
+        #[arg(long, num_args = 1.., default_values_t = vec!["all".to_string()])]
+        problem: Vec<String>,
         /// Backends to run (default: all registered).
         #[arg(long, num_args = 1..)]
         backend: Vec<String>,
@@ -122,7 +126,7 @@ fn main() {
             } else {
                 compare::compare(compare::CompareArgs {
                     quick,
-                    problem,
+                    problems: problem,
                     backends: backend,
                     budget,
                     out: default_out(quick, out),

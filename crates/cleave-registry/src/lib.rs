@@ -12,7 +12,7 @@ pub use backend::{
     Backend, BackendError, BuiltSolid, Capabilities, Region, ResolvedPins, RestSurface, Shape, SolidRequest,
 };
 pub use dg::DgBackend;
-pub use virtualnode::VirtualNodeBackend;
+pub use virtualnode::{SLIVER_OFFSET, VirtualNodeBackend, sliver_beam};
 pub use voxel::VoxelBackend;
 
 use cleave_testkit::compare::CompareBackend;
@@ -66,6 +66,16 @@ impl CompareBackend for CompareOf {
     }
     fn dynamic_solver(&self, variant: &str) -> cleave_integrator::Solver {
         self.0.compare().dynamic_solver(variant)
+    }
+    fn build_extreme(
+        &self,
+        variant: &str,
+        case: cleave_testkit::compare::ExtremeCase,
+        material: &cleave_core::Material,
+        grid: &cleave_testkit::compare::BoxGrid,
+        dirichlet: &cleave_testkit::compare::DirichletSpec,
+    ) -> Result<Option<cleave_testkit::compare::BuiltProblem>, cleave_testkit::compare::BuildError> {
+        self.0.compare().build_extreme(variant, case, material, grid, dirichlet)
     }
     fn extreme_start(
         &self,

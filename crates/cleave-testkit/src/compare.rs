@@ -176,6 +176,24 @@ pub trait CompareBackend: Send + Sync {
         Solver::Cholesky
     }
 
+    /// The problem an extreme case starts on, when it is not the box of [`build_box`]: e.g. the
+    /// sliver case of a backend whose slivers come from cutting builds the box and cuts it first.
+    /// `Ok(None)` (the default) means the box of `build_box`. [`extreme_start`] then receives
+    /// what this built.
+    ///
+    /// [`build_box`]: CompareBackend::build_box
+    /// [`extreme_start`]: CompareBackend::extreme_start
+    fn build_extreme(
+        &self,
+        _variant: &str,
+        _case: ExtremeCase,
+        _material: &Material,
+        _grid: &BoxGrid,
+        _dirichlet: &DirichletSpec,
+    ) -> Result<Option<BuiltProblem>, BuildError> {
+        Ok(None)
+    }
+
     /// The start positions of an extreme case for a problem built from `grid` (whose x = min
     /// face is clamped). The default handles the stretch (the linear map on every coefficient of
     /// the rest DOFs plus `add_translation`, exact for every backend) and declines the others.

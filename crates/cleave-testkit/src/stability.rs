@@ -236,10 +236,15 @@ fn run_cell_inner(
     let grid = beam_grid();
     let clamped = |p: &Point3<Real>| p.x.abs() < 1e-9;
     let dirichlet = DirichletSpec { region: &clamped, value: &|_| Vector3::zeros() };
-    let built = match backend.build_box(variant, &material, &grid, &dirichlet) {
-        Ok(b) => b,
-        Err(e) => return Verdict::Error(e.to_string()),
+    let extreme = match cell.start {
+        Start::Rest => Ok(None),
+        Start::Extreme(case) => backend.build_extreme(variant, case, &material, &grid, &dirichlet),
     };
+    let built =
+        match extreme.and_then(|b| b.map_or_else(|| backend.build_box(variant, &material, &grid, &dirichlet), Ok)) {
+            Ok(b) => b,
+            Err(e) => return Verdict::Error(e.to_string()),
+        };
     let start = match cell.start {
         Start::Rest => None,
         Start::Extreme(case) => match backend.extreme_start(variant, case, &built, &grid) {
