@@ -109,6 +109,76 @@ def closed_pieces(surface, odd_only=False):
     return result
 
 
+def piece_meshes(surface):
+    """Per piece: (vertices as an n×3 array, triangles as an m×3×3 array), lists grouped as in
+    closed_pieces."""
+    import numpy as np
+    pieces, current = [], None
+    for lst in surface["entities"][0]["triangles"]:
+        is_cut = lst["color"]["g"] < 0.5
+        if current is None or not is_cut or current["has_cut"]:
+            current = {"points": [], "triangles": [], "has_cut": False}
+            pieces.append(current)
+        pts = np.array([[p["x"], p["y"], p["z"]] for p in lst["points"]])
+        idx = np.array(lst["indices"]).reshape(-1, 3)
+        current["points"].append(pts)
+        current["triangles"].append(pts[idx])
+        current["has_cut"] = current["has_cut"] or is_cut
+    return [(np.concatenate(p["points"]), np.concatenate(p["triangles"])) for p in pieces]
+
+
+def point_mesh_distance(x, tris):
+    """Exact distance from point x to a triangle soup (m×3×3): the plane distance where x projects
+    into a triangle, else the distance to its nearest edge."""
+    import numpy as np
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+    n = np.cross(b - a, c - a)
+    nn = np.einsum("ij,ij->i", n, n)
+    ok = nn > 0
+    t = np.where(ok, np.einsum("ij,ij->i", x - a, n) / np.where(ok, nn, 1.0), 0.0)
+    p = x - t[:, None] * n
+    def inside(u, v):
+        return np.einsum("ij,ij->i", np.cross(v - u, p - u), n) >= 0
+    face = ok & inside(a, b) & inside(b, c) & inside(c, a)
+    best = np.where(face, np.abs(t) * np.sqrt(nn), np.inf)
+    for u, v in ((a, b), (b, c), (c, a)):
+        e = v - u
+        ee = np.einsum("ij,ij->i", e, e)
+        s = np.clip(np.einsum("ij,ij->i", x - u, e) / np.where(ee > 0, ee, 1.0), 0.0, 1.0)
+        q = u + s[:, None] * e
+        best = np.minimum(best, np.linalg.norm(x - q, axis=1))
+    return float(best.min())
+
+
+def deepest_inside(surface):
+    """The deepest a vertex of one piece lies inside another piece's closed surface (generalized
+    winding number > 1/2, depth = distance to that surface)."""
+    import numpy as np
+    meshes = piece_meshes(surface)
+    deepest = 0.0
+    for a, (pts, _) in enumerate(meshes):
+        for b, (_, tris) in enumerate(meshes):
+            if a == b:
+                continue
+            lo, hi = tris.reshape(-1, 3).min(axis=0), tris.reshape(-1, 3).max(axis=0)
+            q = pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
+            for start in range(0, len(q), 256):
+                chunk = q[start:start + 256]
+                A = tris[None, :, 0, :] - chunk[:, None, :]
+                B = tris[None, :, 1, :] - chunk[:, None, :]
+                C = tris[None, :, 2, :] - chunk[:, None, :]
+                la, lb, lc = (np.linalg.norm(X, axis=2) for X in (A, B, C))
+                num = np.einsum("ijk,ijk->ij", A, np.cross(B, C))
+                den = la * lb * lc + np.einsum("ijk,ijk->ij", A, B) * lc + np.einsum("ijk,ijk->ij", B, C) * la + np.einsum("ijk,ijk->ij", C, A) * lb
+                winding = (2.0 * np.arctan2(num, den)).sum(axis=1) / (4.0 * np.pi)
+                inside = chunk[winding > 0.5]
+                if len(inside) == 0:
+                    continue
+                d = np.array([point_mesh_distance(x, tris) for x in inside])
+                deepest = max(deepest, float(d.max()))
+    return deepest
+
+
 def check_cut(surface, sampled, cuts, stats, min_pieces):
     assert cuts > 0, "no cut events"
     pieces = closed_pieces(surface)
@@ -124,6 +194,13 @@ def check_cut(surface, sampled, cuts, stats, min_pieces):
         for k, (triangles, bad) in enumerate(closed_pieces(frame, odd_only=True)):
             assert bad == 0, f"t = {time / 1e9:.2f} s: piece {k} has {bad} edges in an odd number of triangles"
     print(f"{len(sampled)} sampled frames: no edge in an odd number of triangles")
+    # The body's size: the largest extent of its first recorded surface (before any cut).
+    import numpy as np
+    first = np.concatenate([m[0] for m in piece_meshes(sampled[0][1])])
+    size = float((first.max(axis=0) - first.min(axis=0)).max())
+    depth = deepest_inside(surface)
+    print(f"last frame: deepest vertex of one piece inside another {depth * 1e3:.3f} mm ({100 * depth / size:.2f} % of the body's {size:.3f} m)")
+    assert depth < 0.01 * size, "pieces pass into each other by more than 1 % of the body's size"
     final = stats[-1]
     print(f"final min z {final['surface']['min_z']:.4f} m, kinetic energy {final['energy']['kinetic']:.3e} J")
     assert abs(final["surface"]["min_z"]) < 0.01, "the pieces should rest on the ground"
