@@ -273,27 +273,28 @@ impl ContactSet {
         if self.lagged.len() != colliders * n {
             self.lagged = vec![0.0; colliders * n];
         }
+        // One slot per point, reused by every collider: no allocation after the first step.
+        let mut per_point = std::mem::take(&mut self.per_point);
+        per_point.resize(n, None);
         let (positions, velocities, lagged) = (&self.positions, &self.velocities, &self.lagged);
         for (k, plane) in constraints.planes.iter().enumerate() {
             let params = (plane.stiffness, plane.damping, plane.friction);
             let g = plane.normal.dot(gravity);
-            let found: Vec<Contact> = (0..n)
-                .into_par_iter()
-                .filter_map(|i| {
+            per_point.par_iter_mut().enumerate().for_each(|(i, slot_of_point)| {
+                *slot_of_point = {
                     let offset = -plane.normal.dot(&plane.point.coords);
                     let d = plane.normal.dot(&positions[i].coords) + offset;
                     let slot = k * n + i;
                     let which = (ContactKind::Plane, slot as u32, lagged[slot]);
                     make_contact(i as u32, None, which, plane.normal, (d, offset, 0.0), &velocities[i], g, h, params)
-                })
-                .collect();
-            self.contacts.extend(found);
+                }
+            });
+            self.contacts.extend(per_point.iter().flatten().copied());
         }
         for (k, mesh) in constraints.meshes.iter().enumerate() {
             let k = constraints.planes.len() + k;
-            let found: Vec<Contact> = (0..n)
-                .into_par_iter()
-                .filter_map(|i| {
+            per_point.par_iter_mut().enumerate().for_each(|(i, slot_of_point)| {
+                *slot_of_point = (|| {
                     let (q, u) = (&positions[i], &velocities[i]);
                     let radius = mesh.reach + h * u.norm();
                     let (c, normal) = mesh.closest(q, radius)?;
@@ -316,10 +317,11 @@ impl ContactSet {
                         h,
                         params,
                     )
-                })
-                .collect();
-            self.contacts.extend(found);
+                })();
+            });
+            self.contacts.extend(per_point.iter().flatten().copied());
         }
+        self.per_point = per_point;
         if let Some(surface) = &constraints.surface_contact {
             self.detect_surface(surface, h, (colliders - 1) * n);
         }
