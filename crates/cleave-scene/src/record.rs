@@ -11,6 +11,8 @@ use std::path::{Path, PathBuf};
 
 /// Topic of the deformed surface.
 pub const SURFACE_TOPIC: &str = "/surface";
+/// Topic of the static mesh colliders (one message at the start).
+pub const COLLIDERS_TOPIC: &str = "/colliders";
 /// Topic of the per-step statistics.
 pub const STATS_TOPIC: &str = "/stats";
 /// Topic of timeline and topology events.
@@ -91,6 +93,7 @@ pub struct Recorder {
     path: PathBuf,
     writer: Option<mcap::Writer<BufWriter<File>>>,
     surface: u16,
+    colliders: u16,
     stats: u16,
     events: u16,
     sequence: u32,
@@ -134,12 +137,14 @@ impl Recorder {
             writer.add_channel(schema_id, topic, "json", &metadata).map_err(|e| error(e.to_string()))
         };
         let surface = channel("foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA, SURFACE_TOPIC)?;
+        let colliders = channel("foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA, COLLIDERS_TOPIC)?;
         let stats = channel("cleave.StepStats", STATS_SCHEMA, STATS_TOPIC)?;
         let events = channel("cleave.Event", EVENT_SCHEMA, EVENTS_TOPIC)?;
         Ok(Self {
             path: path.to_path_buf(),
             writer: Some(writer),
             surface,
+            colliders,
             stats,
             events,
             sequence: 0,
@@ -257,6 +262,37 @@ impl Recorder {
         }
         json.push_str("]}]}");
         self.write_bytes(self.surface, time, json.as_bytes())
+    }
+
+    /// Records the static mesh colliders (vertices and triangles of each) once, as one entity
+    /// that never expires, so that a viewer shows the bowl or table the body meets.
+    pub fn colliders(&mut self, meshes: &[cleave_geometry::TriangleMesh]) -> Result<(), RecordError> {
+        if meshes.is_empty() {
+            return Ok(());
+        }
+        let lists: Vec<Value> = meshes
+            .iter()
+            .map(|mesh| {
+                let (points, triangles) = (&mesh.vertices, &mesh.triangles);
+                json!({
+                    "pose": { "position": { "x": 0.0, "y": 0.0, "z": 0.0 }, "orientation": { "x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0 } },
+                    "points": points.iter().map(|p| json!({ "x": finite(p.x), "y": finite(p.y), "z": finite(p.z) })).collect::<Vec<_>>(),
+                    "color": { "r": 0.6, "g": 0.65, "b": 0.7, "a": 1.0 },
+                    "colors": [],
+                    "indices": triangles.iter().flatten().copied().collect::<Vec<u32>>(),
+                })
+            })
+            .collect();
+        let update = json!({
+            "deletions": [],
+            "entities": [{
+                "timestamp": { "sec": 0, "nsec": 0 }, "frame_id": "world", "id": "colliders",
+                "lifetime": { "sec": 0, "nsec": 0 }, "frame_locked": false, "metadata": [],
+                "arrows": [], "cubes": [], "spheres": [], "cylinders": [], "lines": [], "texts": [],
+                "models": [], "triangles": lists,
+            }],
+        });
+        self.write(self.colliders, 0.0, &update)
     }
 
     /// Records a step's statistics, flushing to disk every `flush_every` calls.

@@ -318,6 +318,7 @@ impl Simulation {
                 Err(build_error(format!("{what} must be finite and non-negative, got {value}")))
             }
         };
+        let mut collider_meshes = Vec::new();
         for (index, collider) in scene.colliders.iter().enumerate() {
             match collider {
                 ColliderSpec::Plane { point, normal, stiffness, damping, friction } => {
@@ -331,6 +332,7 @@ impl Simulation {
                 }
                 ColliderSpec::Mesh { path: obj, transform, stiffness, damping, friction, reach } => {
                     let mesh = load_obj(&path, obj, transform, &format!("colliders[{index}]"))?;
+                    collider_meshes.push(mesh.clone());
                     let reach = nonnegative(
                         &format!("colliders[{index}].reach"),
                         reach.unwrap_or(DEFAULT_REACH * element_size),
@@ -451,6 +453,7 @@ impl Simulation {
                 i.backend, i.elements, i.dofs, i.element_size, i.surface_triangles
             );
             recorder.event(0.0, "start", &message)?;
+            recorder.colliders(&collider_meshes)?;
         }
         simulation.record_surface()?;
         let initial = simulation.integrator.energies(simulation.discretization.as_ref());
