@@ -95,6 +95,9 @@ pub(crate) struct ContactSet {
     /// belongs to (triangles sharing vertices).
     rest: Vec<Point3<Real>>,
     component: Vec<u32>,
+    /// Points per component, and this step's mean velocity of each.
+    component_points: Vec<u32>,
+    component_velocity: Vec<Vector3<Real>>,
     /// Per surface component: its triangles, and those on a cut (indices into the surface's
     /// triangles), with a bounding volume hierarchy over each list (built at the first step of
     /// an epoch, refit every step).
@@ -211,6 +214,10 @@ impl ContactSet {
                     compact[r as usize]
                 })
                 .collect();
+            set.component_points = vec![0; count as usize];
+            for &c in &set.component {
+                set.component_points[c as usize] += 1;
+            }
             set.component_triangles = vec![Vec::new(); count as usize];
             set.component_cut_triangles = vec![Vec::new(); count as usize];
             for (t, tri) in surface.triangles.iter().enumerate() {
@@ -343,13 +350,24 @@ impl ContactSet {
             }
             self.triangle_normals.push(area_normal.try_normalize(0.0).unwrap_or_else(Vector3::zeros));
         }
-        // Motion is bounded relative to the mean velocity `w`: |u_q − u_t| ≤ |u_q − w| + |u_t − w|,
-        // so a body falling as a whole does not inflate every box by its fall.
-        let w = velocities.iter().sum::<Vector3<Real>>() / velocities.len().max(1) as Real;
+        // Motion is bounded relative to the mean velocity `w_b` of the piece searched:
+        // |u_q − u_t| ≤ |u_q − w_b| + |u_t − w_b|, the second in the leaf boxes, the first in
+        // the query. So a piece moving as a whole (falling, sliding) does not inflate its boxes
+        // by its motion, and a point is searched with only its speed relative to each piece.
+        self.component_velocity.clear();
+        self.component_velocity.resize(self.component_points.len(), Vector3::zeros());
+        for (i, &c) in self.component.iter().enumerate() {
+            self.component_velocity[c as usize] += velocities[i];
+        }
+        for (w, &count) in self.component_velocity.iter_mut().zip(&self.component_points) {
+            *w /= count.max(1) as Real;
+        }
+        let (component, component_velocity) = (&self.component, &self.component_velocity);
         let leaf = |t: &[u32; 3]| -> Aabb {
             let mut lo = positions[t[0] as usize];
             let mut hi = lo;
             let mut speed: Real = 0.0;
+            let w = component_velocity[component[t[0] as usize] as usize];
             for &i in t {
                 lo = lo.inf(&positions[i as usize]);
                 hi = hi.sup(&positions[i as usize]);
@@ -389,38 +407,41 @@ impl ContactSet {
             if vertex_normal == Vector3::zeros() {
                 return;
             }
-            let motion = Vector3::repeat(h * (u - w).norm());
-            let query = Aabb::new(to_parry(&(q - motion)), to_parry(&(q + motion)));
+            let query = |b: usize| {
+                let motion = Vector3::repeat(h * (u - this.component_velocity[b]).norm());
+                Aabb::new(to_parry(&(q - motion)), to_parry(&(q + motion)))
+            };
             let mut best: Option<(Real, usize, Point3<Real>, [Real; 3])> = None;
             // Other pieces' whole surfaces; the point's own piece only through its cut faces
             // (the two faces of an unfinished cut, a flap): its own smooth surface around the
             // point is never visited.
             let own = this.component[i] as usize;
-            let searched = (0..this.bvh_all.len()).map(|b| {
-                if b == own {
+            for b in 0..this.bvh_all.len() {
+                let (bvh, list) = if b == own {
                     (&this.bvh_cut[b], &this.component_cut_triangles[b])
                 } else {
                     (&this.bvh_all[b], &this.component_triangles[b])
-                }
-            });
-            for t in searched.flat_map(|(bvh, list)| bvh.intersect_aabb(&query).map(|leaf| list[leaf as usize])) {
-                let tri = &triangles[t as usize];
-                // Cheapest first: a contact needs opposing surfaces (this also drops the
-                // point's own smooth surface around it), then no adjacency.
-                if vertex_normal.dot(&this.triangle_normals[t as usize]) >= 0.0 || this.excluded(i as u32, tri) {
-                    continue;
-                }
-                let corners = tri.map(|k| positions[k as usize]);
-                let (c, beta) = closest_point_on_triangle(&q, &corners);
-                let distance = (q - c).norm();
-                if contact_normal(&q, &c, &this.triangle_normals[t as usize], distance, lateral).is_none() {
-                    continue;
-                }
-                if this.component[i] == this.component[tri[0] as usize] && this.behind_at_rest(i, tri, &beta) {
-                    continue;
-                }
-                if best.is_none_or(|b| distance < b.0) {
-                    best = Some((distance, t as usize, c, beta));
+                };
+                let query = query(b);
+                for t in bvh.intersect_aabb(&query).map(|leaf| list[leaf as usize]) {
+                    let tri = &triangles[t as usize];
+                    // Cheapest first: a contact needs opposing surfaces (this also drops the
+                    // point's own smooth surface around it), then no adjacency.
+                    if vertex_normal.dot(&this.triangle_normals[t as usize]) >= 0.0 || this.excluded(i as u32, tri) {
+                        continue;
+                    }
+                    let corners = tri.map(|k| positions[k as usize]);
+                    let (c, beta) = closest_point_on_triangle(&q, &corners);
+                    let distance = (q - c).norm();
+                    if contact_normal(&q, &c, &this.triangle_normals[t as usize], distance, lateral).is_none() {
+                        continue;
+                    }
+                    if this.component[i] == this.component[tri[0] as usize] && this.behind_at_rest(i, tri, &beta) {
+                        continue;
+                    }
+                    if best.is_none_or(|b| distance < b.0) {
+                        best = Some((distance, t as usize, c, beta));
+                    }
                 }
             }
             let Some((distance, t, c, beta)) = best else { return };
