@@ -7,8 +7,8 @@
 //!   and outward oriented, returning [`MeshStats`].
 //! - [`TriangleMesh::winding_number`] / [`TriangleMesh::contains`] and the accelerated
 //!   [`InsideTester`] (module `inside`).
-//! - [`triangle_aabb_overlap`] (module `overlap`); [`closest_point_on_triangle`] (module
-//!   `closest`).
+//! - [`triangle_aabb_overlap`] (module `overlap`); [`closest_point_on_triangle`] and
+//!   [`closest_parameters_of_lines`] (module `closest`).
 //! - [`voxelize`] producing a [`VoxelGrid`] (module `voxelize`), following Müller et al.
 //!   2004, §2.1.
 //! - [`hex_slice`] producing a [`HexSlicing`] (module `hex_slice`): a closed surface sliced by
@@ -41,7 +41,7 @@ mod validate;
 mod voxelize;
 
 pub use blade::{Blade, BladeError, Keyframe};
-pub use closest::closest_point_on_triangle;
+pub use closest::{closest_parameters_of_lines, closest_point_on_triangle};
 pub use error::GeometryError;
 pub use hex_slice::{
     DEFAULT_MERGE_BELOW, GRID_MARGIN, HexSliceOptions, HexSlicing, MAX_SLICE_CELLS, MIN_FACE_AREA, hex_slice,

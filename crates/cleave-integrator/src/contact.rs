@@ -2,9 +2,11 @@
 //! the body's own embedded surface (between pieces and within one), with regularized Coulomb
 //! friction. Equations and what is guaranteed: docs/math/contact.md.
 //!
-//! Every contact is one *row*: the point's embedding row, minus the barycentric combination of
-//! the rows of a triangle's vertices when the other side is the body itself. With the row's
-//! weights `w`, a normal `n` and a gap `d`, a contact contributes
+//! Every contact is one *row*, a combination of at most four surface points' embedding rows
+//! ([`Row`]): a point alone against a collider; a point minus the barycentric combination of a
+//! triangle's vertices (vertex–triangle); the closest point of one surface edge minus that of
+//! another (edge–edge). With the row's weights `w` over nodes, a normal `n` and a gap `d`, a
+//! contact contributes
 //!
 //! ```text
 //! force    w ⊗ f,             f = −k min(d, 0) n
@@ -17,7 +19,7 @@
 
 use crate::constraints::{Constraints, MeshCollider};
 use cleave_core::{AssemblyPattern, Embedding, Matrix3, Point3, Real, Vector3};
-use cleave_geometry::closest_point_on_triangle;
+use cleave_geometry::{closest_parameters_of_lines, closest_point_on_triangle};
 use parry3d_f64::bounding_volume::Aabb;
 use parry3d_f64::math::Vector as ParryVector;
 use parry3d_f64::partitioning::{Bvh, BvhBuildStrategy, BvhWorkspace};
@@ -36,15 +38,45 @@ pub enum ContactKind {
     Mesh,
     /// A triangle of the body's own embedded surface (another piece, or the same piece).
     Surface,
+    /// An edge of the body's surface against an edge of another piece.
+    Edge,
+}
+
+/// The surface points of a contact row and their weights: `Σ weights[k] · point(points[k])`
+/// over the first `len` entries is the row's position (and velocity) difference.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Row {
+    pub points: [u32; 4],
+    pub weights: [Real; 4],
+    pub len: u8,
+}
+
+impl Row {
+    /// One point against a collider.
+    fn point(i: u32) -> Self {
+        Row { points: [i, 0, 0, 0], weights: [1.0, 0.0, 0.0, 0.0], len: 1 }
+    }
+
+    /// Point `i` minus the point of triangle `tri` at barycentric `beta`.
+    fn vertex_triangle(i: u32, tri: [u32; 3], beta: [Real; 3]) -> Self {
+        Row { points: [i, tri[0], tri[1], tri[2]], weights: [1.0, -beta[0], -beta[1], -beta[2]], len: 4 }
+    }
+
+    /// The point at `s` of edge `a` minus the point at `t` of edge `b`.
+    fn edge_edge(a: [u32; 2], s: Real, b: [u32; 2], t: Real) -> Self {
+        Row { points: [a[0], a[1], b[0], b[1]], weights: [1.0 - s, s, t - 1.0, -t], len: 4 }
+    }
+
+    fn entries(&self) -> impl Iterator<Item = (u32, Real)> + '_ {
+        self.points.iter().copied().zip(self.weights.iter().copied()).take(self.len as usize)
+    }
 }
 
 /// One active contact of a step.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Contact {
-    /// Row of the point in the contact-point embedding.
-    pub point: u32,
-    /// The other side when it is the body's surface: vertex rows and barycentric weights.
-    pub triangle: Option<([u32; 3], [Real; 3])>,
+    /// The surface points of the row.
+    pub row: Row,
     /// `P` of the module docs.
     pub matrix: Matrix3<Real>,
     /// `f` of the module docs.
@@ -74,6 +106,8 @@ pub struct ContactStats {
     pub meshes: usize,
     /// Active contacts between surface points and surface triangles (between or within pieces).
     pub surface: usize,
+    /// Active contacts between surface edges of different pieces.
+    pub edges: usize,
     /// Largest penetration `max(−d)` over active contacts (0 when none penetrates) [m].
     pub max_penetration: Real,
     /// Seconds spent finding contacts.
@@ -107,6 +141,17 @@ pub(crate) struct ContactSet {
     bvh_cut: Vec<Bvh>,
     bvh_workspace: BvhWorkspace,
     per_point: Vec<Option<Contact>>,
+    /// Surface edges (point pairs), the triangles on either side, and the *feature* edges among
+    /// them (where the faces meet at more than [`FEATURE_DIHEDRAL_COS`] at rest, or fewer or
+    /// more than two faces meet): edge–edge contact searches from feature edges only.
+    edges: Vec<[u32; 2]>,
+    edge_faces: Vec<[u32; 2]>,
+    is_feature: Vec<bool>,
+    feature_edges: Vec<u32>,
+    /// Per surface component its edges, with a bounding volume hierarchy over them.
+    component_edges: Vec<Vec<u32>>,
+    bvh_edges: Vec<Bvh>,
+    per_edge: Vec<Option<Contact>>,
     /// Normal force of the last step per (collider, point): planes, then meshes, then the
     /// surface; what friction is proportional to.
     lagged: Vec<Real>,
@@ -140,6 +185,11 @@ fn contact_normal(
     (distance == 0.0 || (offset - n * n.dot(&offset)).norm() <= lateral.max(1e-9 * distance)).then_some(*n)
 }
 
+/// Edges whose faces meet at an angle with cosine below this at rest (about 26°) are feature
+/// edges, searched for edge–edge contact: where faces meet flatter, the vertex–triangle
+/// contacts of the faces around them keep surfaces apart.
+const FEATURE_DIHEDRAL_COS: Real = 0.9;
+
 /// Sideways tolerance of [`contact_normal`], as a fraction of the reach.
 const LATERAL_FRACTION: Real = 0.05;
 
@@ -155,8 +205,7 @@ fn slip_coefficient(speed: Real) -> Real {
 /// `Integrator::add_penalty_forces`).
 #[allow(clippy::too_many_arguments)]
 fn make_contact(
-    point: u32,
-    triangle: Option<([u32; 3], [Real; 3])>,
+    row: Row,
     (kind, slot, lagged_force): (ContactKind, u32, Real),
     n: Vector3<Real>,
     (d, offset, touching): (Real, Real, Real),
@@ -179,7 +228,7 @@ fn make_contact(
     let nn = n * n.transpose();
     let matrix = nn * (h * h * stiffness + h * damping) + (Matrix3::identity() - nn) * (h * c_t);
     let force = n * (-stiffness * d.min(0.0));
-    Some(Contact { point, triangle, matrix, force, depth: d, stiffness, damping, normal: n, slot, offset, kind })
+    Some(Contact { row, matrix, force, depth: d, stiffness, damping, normal: n, slot, offset, kind })
 }
 
 impl ContactSet {
@@ -242,8 +291,42 @@ impl ContactSet {
                 set.ring.extend(ring);
                 set.ring_offsets.push(set.ring.len());
             }
+            set.find_edges(&surface.triangles);
         }
         set
+    }
+
+    /// The surface's edges, their faces, the feature edges and each component's edges.
+    fn find_edges(&mut self, triangles: &[[u32; 3]]) {
+        let mut sides: Vec<(u32, u32, u32)> = triangles
+            .iter()
+            .enumerate()
+            .flat_map(|(t, tri)| {
+                (0..3).map(move |k| (tri[k].min(tri[(k + 1) % 3]), tri[k].max(tri[(k + 1) % 3]), t as u32))
+            })
+            .collect();
+        sides.sort_unstable();
+        let rest_normal = |t: u32| {
+            let [a, b, c] = triangles[t as usize].map(|k| self.rest[k as usize]);
+            (b - a).cross(&(c - a)).try_normalize(0.0)
+        };
+        self.component_edges = vec![Vec::new(); self.component_points.len()];
+        for group in sides.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
+            let faces = [group[0].2, group.get(1).map_or(group[0].2, |g| g.2)];
+            let feature = group.len() != 2
+                || match (rest_normal(faces[0]), rest_normal(faces[1])) {
+                    (Some(n0), Some(n1)) => n0.dot(&n1) < FEATURE_DIHEDRAL_COS,
+                    _ => false,
+                };
+            let e = self.edges.len() as u32;
+            self.component_edges[self.component[group[0].0 as usize] as usize].push(e);
+            if feature {
+                self.feature_edges.push(e);
+            }
+            self.edges.push([group[0].0, group[0].1]);
+            self.edge_faces.push(faces);
+            self.is_feature.push(feature);
+        }
     }
 
     /// Whether point `i` lies behind triangle `tri` (at barycentric `beta`) in the rest shape.
@@ -277,8 +360,8 @@ impl ContactSet {
         self.positions.par_iter_mut().enumerate().for_each(|(i, p)| *p = points.point(x, i));
         self.velocities.par_iter_mut().enumerate().for_each(|(i, u)| *u = points.point(v, i).coords);
         let colliders = constraints.planes.len() + constraints.meshes.len() + 1;
-        if self.lagged.len() != colliders * n {
-            self.lagged = vec![0.0; colliders * n];
+        if self.lagged.len() != colliders * n + self.feature_edges.len() {
+            self.lagged = vec![0.0; colliders * n + self.feature_edges.len()];
         }
         // One slot per point, reused by every collider: no allocation after the first step.
         let mut per_point = std::mem::take(&mut self.per_point);
@@ -293,7 +376,16 @@ impl ContactSet {
                     let d = plane.normal.dot(&positions[i].coords) + offset;
                     let slot = k * n + i;
                     let which = (ContactKind::Plane, slot as u32, lagged[slot]);
-                    make_contact(i as u32, None, which, plane.normal, (d, offset, 0.0), &velocities[i], g, h, params)
+                    make_contact(
+                        Row::point(i as u32),
+                        which,
+                        plane.normal,
+                        (d, offset, 0.0),
+                        &velocities[i],
+                        g,
+                        h,
+                        params,
+                    )
                 }
             });
             self.contacts.extend(per_point.iter().flatten().copied());
@@ -314,8 +406,7 @@ impl ContactSet {
                     let slot = k * n + i;
                     let which = (ContactKind::Mesh, slot as u32, lagged[slot]);
                     make_contact(
-                        i as u32,
-                        None,
+                        Row::point(i as u32),
                         which,
                         normal,
                         (d, -normal.dot(&c.coords), 0.0),
@@ -331,6 +422,9 @@ impl ContactSet {
         self.per_point = per_point;
         if let Some(surface) = &constraints.surface_contact {
             self.detect_surface(surface, h, (colliders - 1) * n);
+            if surface.edge_contact {
+                self.detect_edges(surface, h, colliders * n);
+            }
         }
     }
 
@@ -468,10 +562,121 @@ impl ContactSet {
             // Touching counts (faces a cut has just separated coincide, and nothing else would
             // hold the upper one up in the step after the cut), up to rounding of the gap.
             let gap = (d, -surface.thickness, 1e-9 * surface.reach);
-            *slot = make_contact(i as u32, Some((tri, beta)), which, normal, gap, &relative, 0.0, h, params);
+            *slot =
+                make_contact(Row::vertex_triangle(i as u32, tri, beta), which, normal, gap, &relative, 0.0, h, params);
         });
         self.contacts.extend(per_point.iter().flatten().copied());
         self.per_point = per_point;
+    }
+
+    /// Edge–edge contacts: each feature edge against the edges of the other pieces, where the
+    /// closest points of the two lines lie inside both edges and the two pieces' faces at the
+    /// edges oppose along the common normal `e_a × e_b` (docs/math/contact.md §2). The closest
+    /// active pair per feature edge; a pair of two feature edges is taken from the lower one.
+    fn detect_edges(&mut self, surface: &crate::constraints::SurfaceContact, h: Real, first_slot: usize) {
+        let (positions, velocities) = (&self.positions, &self.velocities);
+        let (component, component_velocity) = (&self.component, &self.component_velocity);
+        let leaf = |e: &[u32; 2]| -> Aabb {
+            let (p, q) = (positions[e[0] as usize], positions[e[1] as usize]);
+            let w = component_velocity[component[e[0] as usize] as usize];
+            let speed = (velocities[e[0] as usize] - w).norm().max((velocities[e[1] as usize] - w).norm());
+            let margin = Vector3::repeat(surface.reach + h * speed);
+            Aabb::new(to_parry(&(p.inf(&q) - margin)), to_parry(&(p.sup(&q) + margin)))
+        };
+        if self.bvh_edges.is_empty() {
+            self.bvh_edges = self
+                .component_edges
+                .iter()
+                .map(|list| {
+                    let leaves: Vec<Aabb> = list.iter().map(|&e| leaf(&self.edges[e as usize])).collect();
+                    Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves)
+                })
+                .collect();
+        } else {
+            for (bvh, list) in self.bvh_edges.iter_mut().zip(&self.component_edges) {
+                for (leaf_index, &e) in list.iter().enumerate() {
+                    bvh.insert_or_update_partially(leaf(&self.edges[e as usize]), leaf_index as u32, 0.0);
+                }
+                bvh.refit(&mut self.bvh_workspace);
+            }
+        }
+        let mut per_edge = std::mem::take(&mut self.per_edge);
+        per_edge.clear();
+        per_edge.resize(self.feature_edges.len(), None);
+        let this = &*self;
+        let params = (surface.stiffness, surface.damping, surface.friction);
+        // Outward normal of the faces at an edge (their sum, deformed).
+        let edge_normal = |e: usize| {
+            let [f0, f1] = this.edge_faces[e];
+            this.triangle_normals[f0 as usize] + this.triangle_normals[f1 as usize]
+        };
+        per_edge.par_iter_mut().enumerate().for_each(|(k, slot)| {
+            let e = this.feature_edges[k] as usize;
+            let a = this.edges[e];
+            let ends = a.map(|i| positions[i as usize]);
+            let speeds = a.map(|i| velocities[i as usize]);
+            let own = this.component[a[0] as usize] as usize;
+            let outward_a = edge_normal(e);
+            // The closest active pair.
+            let mut best: Option<(Real, Contact)> = None;
+            let which = (ContactKind::Edge, (first_slot + k) as u32, this.lagged[first_slot + k]);
+            for (b, (bvh, list)) in this.bvh_edges.iter().zip(&this.component_edges).enumerate() {
+                if b == own {
+                    continue;
+                }
+                let w = this.component_velocity[b];
+                let motion = Vector3::repeat(h * (speeds[0] - w).norm().max((speeds[1] - w).norm()));
+                let query =
+                    Aabb::new(to_parry(&(ends[0].inf(&ends[1]) - motion)), to_parry(&(ends[0].sup(&ends[1]) + motion)));
+                for g in bvh.intersect_aabb(&query).map(|leaf| list[leaf as usize] as usize) {
+                    if this.is_feature[g] && g < e {
+                        continue;
+                    }
+                    let other = this.edges[g].map(|i| positions[i as usize]);
+                    let Some((s, t)) = closest_parameters_of_lines(&ends, &other) else { continue };
+                    // Within the reach of an end the pair is that end's: the vertex–triangle
+                    // contacts of the faces around it see it, and the two edges' common normal
+                    // turns arbitrarily as they come to share a corner.
+                    let (length_a, length_b) = ((ends[1] - ends[0]).norm(), (other[1] - other[0]).norm());
+                    let (margin_s, margin_t) = (surface.reach / length_a, surface.reach / length_b);
+                    if !(margin_s..=1.0 - margin_s).contains(&s) || !(margin_t..=1.0 - margin_t).contains(&t) {
+                        continue;
+                    }
+                    // The common normal, towards this edge's side of the other piece.
+                    let Some(mut normal) = (ends[1] - ends[0]).cross(&(other[1] - other[0])).try_normalize(0.0) else {
+                        continue;
+                    };
+                    let outward_b = edge_normal(g);
+                    if normal.dot(&outward_b) < 0.0 {
+                        normal = -normal;
+                    }
+                    if normal.dot(&outward_a) >= 0.0 || normal.dot(&outward_b) <= 0.0 {
+                        continue;
+                    }
+                    let p = ends[0] + (ends[1] - ends[0]) * s;
+                    let q = other[0] + (other[1] - other[0]) * t;
+                    let d = normal.dot(&(p - q)) - surface.thickness;
+                    let row = Row::edge_edge(a, s, this.edges[g], t);
+                    let relative = row.entries().fold(Vector3::zeros(), |sum, (i, w)| sum + velocities[i as usize] * w);
+                    // Farther than the reach (with this step's approach) is no contact yet;
+                    // deeper than the reach is the far side of a thin part.
+                    if d > surface.reach + h * relative.norm() || d < -surface.reach {
+                        continue;
+                    }
+                    let distance = (p - q).norm();
+                    if best.as_ref().is_some_and(|best| distance >= best.0) {
+                        continue;
+                    }
+                    let gap = (d, -surface.thickness, 1e-9 * surface.reach);
+                    if let Some(contact) = make_contact(row, which, normal, gap, &relative, 0.0, h, params) {
+                        best = Some((distance, contact));
+                    }
+                }
+            }
+            *slot = best.map(|(_, contact)| contact);
+        });
+        self.contacts.extend(per_edge.iter().flatten().copied());
+        self.per_edge = per_edge;
     }
 
     /// Stores the normal force every active contact carried in the step just solved (new
@@ -494,6 +699,7 @@ impl ContactSet {
                 ContactKind::Plane => stats.planes += 1,
                 ContactKind::Mesh => stats.meshes += 1,
                 ContactKind::Surface => stats.surface += 1,
+                ContactKind::Edge => stats.edges += 1,
             }
             stats.max_penetration = stats.max_penetration.max(-c.depth);
         }
@@ -501,22 +707,15 @@ impl ContactSet {
     }
 }
 
-/// Visits the entries `(node, weight)` of a contact's row: the point's, then the triangle's
-/// (weights negated and scaled by the barycentric coordinates). A node may occur
-/// more than once (point and triangle in one element); every sum below treats the entries as
-/// a sum, which is exact.
+/// Visits the entries `(node, weight)` of a contact's row: each surface point's embedding row
+/// scaled by the point's weight in the row. A node may occur more than once (point and
+/// triangle in one element); every sum below treats the entries as a sum, which is exact.
 #[inline]
 fn for_each_entry(points: &Embedding, contact: &Contact, mut visit: impl FnMut(u32, Real)) {
-    let (nodes, weights) = points.row(contact.point as usize);
-    for (&n, &w) in nodes.iter().zip(weights) {
-        visit(n, w);
-    }
-    if let Some((vertices, beta)) = &contact.triangle {
-        for (&vertex, &b) in vertices.iter().zip(beta) {
-            let (nodes, weights) = points.row(vertex as usize);
-            for (&n, &w) in nodes.iter().zip(weights) {
-                visit(n, -b * w);
-            }
+    for (point, scale) in contact.row.entries() {
+        let (nodes, weights) = points.row(point as usize);
+        for (&n, &w) in nodes.iter().zip(weights) {
+            visit(n, scale * w);
         }
     }
 }
@@ -560,19 +759,18 @@ pub(crate) fn energy(points: &Embedding, contacts: &[Contact], x: &[Real]) -> (R
 }
 
 /// The node groups of this step's contact rows whose couplings the pattern lacks (a point and
-/// a triangle of the body's surface that were never in contact before in this epoch). Each
-/// group is the point's nodes with those of the triangle *and of the points around its
-/// vertices*, so that a point sliding on to a neighbouring triangle needs no new pattern.
+/// a triangle, or two edges, of the body's surface that were never in contact before in this
+/// epoch). Each group is the nodes of the row's points *and of the points around them*, so
+/// that a point sliding on to a neighbouring triangle needs no new pattern.
 pub(crate) fn missing_couplings(points: &Embedding, set: &ContactSet, pattern: &AssemblyPattern) -> Vec<Vec<u32>> {
     let mut missing = Vec::new();
     let mut nodes: Vec<u32> = Vec::with_capacity(16);
-    for c in set.contacts.iter().filter(|c| c.triangle.is_some()) {
+    for c in set.contacts.iter().filter(|c| c.row.len > 1) {
         nodes.clear();
         for_each_entry(points, c, |n, _| nodes.push(n));
         if nodes.iter().any(|&j| nodes.iter().any(|&i| pattern.rank(i, j).is_none())) {
-            let (vertices, _) = c.triangle.expect("filtered");
-            let mut group = points.row(c.point as usize).0.to_vec();
-            for &v in &vertices {
+            let mut group = Vec::new();
+            for (v, _) in c.row.entries() {
                 for &around in &set.ring[set.ring_offsets[v as usize]..set.ring_offsets[v as usize + 1]] {
                     group.extend_from_slice(points.row(around as usize).0);
                 }
@@ -680,6 +878,37 @@ mod tests {
                 friction: 0.0,
                 thickness: 0.0,
                 reach: 0.05,
+                edge_contact: true,
+            }),
+            ..Default::default()
+        };
+        (constraints, x, rest)
+    }
+
+    /// Two triangles of two pieces whose edges cross 3.7 mm into each other (an edge along x
+    /// whose triangle faces up, one along y whose triangle faces down), slightly skewed so that
+    /// nothing is axis aligned, with no point near the other's face: an edge–edge contact.
+    fn crossing_edges() -> (Constraints, Vec<Real>, Vec<Real>) {
+        let mut points = Embedding::new();
+        for i in 0..6u32 {
+            points.push_row(&[i], &[1.0]);
+        }
+        let lower = [[0.5, 0.02, 0.01], [-0.5, -0.01, -0.01], [0.03, -0.5, -0.5]];
+        let upper = [[0.1, -0.5, -0.002], [0.12, 0.5, -0.001], [0.6, 0.02, 0.5]];
+        let x: Vec<Real> = lower.iter().chain(&upper).flatten().copied().collect();
+        let rest: Vec<Real> =
+            x.iter().enumerate().map(|(i, &c)| if i >= 9 && i % 3 == 2 { c + 1.0 } else { c }).collect();
+        let constraints = Constraints {
+            contact_points: Some(points),
+            surface_contact: Some(SurfaceContact {
+                triangles: vec![[0, 1, 2], [3, 4, 5]],
+                on_cut: Vec::new(),
+                stiffness: 1e4,
+                damping: 0.0,
+                friction: 0.0,
+                thickness: 0.0,
+                reach: 0.05,
+                edge_contact: true,
             }),
             ..Default::default()
         };
@@ -687,13 +916,34 @@ mod tests {
     }
 
     #[test]
+    fn crossing_edges_make_an_edge_contact() {
+        let (constraints, x, rest) = crossing_edges();
+        let mut set = ContactSet::new(&constraints, &rest);
+        set.detect(&constraints, &x, &vec![0.0; x.len()], 0.01, &Vector3::zeros());
+        let stats = set.stats();
+        // The crossing's depth along the common normal, computed here from the four points.
+        let at = |k: usize| Point3::new(x[3 * k], x[3 * k + 1], x[3 * k + 2]);
+        let (a, b) = ([at(0), at(1)], [at(3), at(4)]);
+        let (s, t) = closest_parameters_of_lines(&a, &b).unwrap();
+        let gap = ((a[0] + (a[1] - a[0]) * s) - (b[0] + (b[1] - b[0]) * t)).norm();
+        println!("{stats:?}; the edges cross {gap:.3e} m deep");
+        assert_eq!(stats.edges, 1, "{stats:?}");
+        assert!((stats.max_penetration - gap).abs() < 1e-12 * gap.max(1.0), "{} vs {gap}", stats.max_penetration);
+    }
+
+    #[test]
     fn contact_forces_are_the_negative_gradient_of_the_contact_energy() {
-        let (constraints, x, rest) = setup();
+        for (constraints, x, rest) in [setup(), crossing_edges()] {
+            forces_are_the_negative_gradient(constraints, x, rest);
+        }
+    }
+
+    fn forces_are_the_negative_gradient(constraints: Constraints, x: Vec<Real>, rest: Vec<Real>) {
         let points = constraints.contact_points.as_ref().unwrap();
         let mut set = ContactSet::new(&constraints, &rest);
         set.detect(&constraints, &x, &vec![0.0; x.len()], 0.01, &Vector3::zeros());
         let kinds = set.stats();
-        assert!(kinds.surface > 0 && kinds.planes > 0, "{kinds:?}");
+        assert!((kinds.surface > 0 && kinds.planes > 0) || kinds.edges > 0, "{kinds:?}");
         let mut force = vec![0.0; x.len()];
         add_forces(points, &set.contacts, &mut force);
         let mut worst: Real = 0.0;
@@ -713,12 +963,18 @@ mod tests {
 
     #[test]
     fn surface_contact_forces_have_no_net_force_or_torque() {
-        let (mut constraints, x, rest) = setup();
-        constraints.planes.clear();
+        for (mut constraints, x, rest) in [setup(), crossing_edges()] {
+            constraints.planes.clear();
+            no_net_force_or_torque(constraints, x, rest);
+        }
+    }
+
+    fn no_net_force_or_torque(constraints: Constraints, x: Vec<Real>, rest: Vec<Real>) {
         let points = constraints.contact_points.as_ref().unwrap().clone();
         let mut set = ContactSet::new(&constraints, &rest);
         set.detect(&constraints, &x, &vec![0.0; x.len()], 0.01, &Vector3::zeros());
-        assert!(set.stats().surface >= 1);
+        let stats = set.stats();
+        assert!(stats.surface + stats.edges >= 1);
         let mut force = vec![0.0; x.len()];
         add_forces(&points, &set.contacts, &mut force);
         // The implicit part as well: the action of the contact matrix on any velocity.

@@ -384,6 +384,7 @@ impl Simulation {
                 friction: nonnegative("contact.friction", spec.friction)?,
                 thickness: nonnegative("contact.thickness", spec.thickness)?,
                 reach: nonnegative("contact.reach", spec.reach.unwrap_or(DEFAULT_REACH * element_size))?,
+                edge_contact: true,
             });
         }
         if !constraints.planes.is_empty() || !constraints.meshes.is_empty() || constraints.surface_contact.is_some() {
@@ -538,7 +539,8 @@ impl Simulation {
             "active_contacts": report.active_contacts,
             "contacts": {
                 "planes": report.contacts.planes, "meshes": report.contacts.meshes,
-                "surface": report.contacts.surface, "max_penetration": report.contacts.max_penetration,
+                "surface": report.contacts.surface, "edges": report.contacts.edges,
+                "max_penetration": report.contacts.max_penetration,
                 "seconds": report.contacts.seconds,
             },
             "surface": { "min_z": lo, "max_z": hi, "centroid": [centroid.x, centroid.y, centroid.z] },
