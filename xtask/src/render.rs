@@ -1,0 +1,264 @@
+//! `cargo xtask render`: recorded `/surface` frames drawn to PNG (and an animated GIF) with flat
+//! shading in the recorded colours (cut faces red), the collider planes as a ground, meshes
+//! colliders, the simulated time and the backend's name; `--grid` puts the same instants of
+//! several recordings side by side.
+
+use crate::animation::GifWriter;
+use crate::plots::{FONT, register_font};
+use crate::raster::{Camera, Canvas};
+use crate::recording::{self, Frame, Recording, TriangleList, Vec3};
+use anyhow::{Context, Result, anyhow, bail};
+use indicatif::{ProgressBar, ProgressStyle};
+use plotters::prelude::*;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// What `cargo xtask render` was asked for.
+pub struct RenderArgs {
+    pub files: Vec<PathBuf>,
+    pub grid: bool,
+    pub out: PathBuf,
+    pub every: usize,
+    /// Azimuth and elevation [degrees].
+    pub camera: (f32, f32),
+    /// Width and height of one picture [pixels].
+    pub size: (usize, usize),
+    pub gif: bool,
+    pub quiet: bool,
+}
+
+const BACKGROUND: [u8; 3] = [250, 250, 250];
+/// Light direction in the camera's frame (right, away from the viewer, up): from the upper
+/// left, behind the viewer.
+const LIGHT: Vec3 = [-0.38, -0.72, 0.58];
+/// Brightness steps: flat shading in a few dozen levels keeps a frame's colours within a
+/// GIF palette without dithering.
+const SHADES: f32 = 24.0;
+
+/// Parses "AZIMUTH,ELEVATION" in degrees.
+pub fn parse_camera(text: &str) -> Result<(f32, f32)> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let error = || anyhow!("--camera takes AZIMUTH,ELEVATION in degrees (e.g. -60,20), got {text:?}");
+    let [azimuth, elevation] = parts.as_slice() else { return Err(error()) };
+    let (a, e): (f32, f32) = (azimuth.parse().map_err(|_| error())?, elevation.parse().map_err(|_| error())?);
+    if !(a.is_finite() && e.is_finite()) {
+        return Err(error());
+    }
+    Ok((a, e))
+}
+
+/// Parses "WIDTHxHEIGHT" in pixels.
+pub fn parse_size(text: &str) -> Result<(usize, usize)> {
+    let error = || anyhow!("--size takes WIDTHxHEIGHT in pixels, each 64 to 4096 (e.g. 480x360), got {text:?}");
+    let (w, h) = text.split_once('x').ok_or_else(error)?;
+    let (w, h): (usize, usize) = (w.trim().parse().map_err(|_| error())?, h.trim().parse().map_err(|_| error())?);
+    if !((64..=4096).contains(&w) && (64..=4096).contains(&h)) {
+        return Err(error());
+    }
+    Ok((w, h))
+}
+
+/// The frame shown at `time`: the last one at or before it (the first before the recording
+/// starts, the last after it ends).
+fn frame_at(recording: &Recording, time: f64) -> &Frame {
+    let after = recording.frames.partition_point(|f| f.time <= time + 1e-9);
+    &recording.frames[after.saturating_sub(1)]
+}
+
+/// The box around every drawn point of every frame (planes excepted: they are infinite), so
+/// that the camera stays still.
+fn bounds(recording: &Recording) -> (Vec3, Vec3) {
+    let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
+    let lists = recording.frames.iter().flat_map(|f| &f.lists).chain(&recording.meshes);
+    for p in lists.flat_map(|l| &l.points).filter(|p| p.iter().all(|c| c.is_finite())) {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    if lo[0] > hi[0] { ([-0.5; 3], [0.5; 3]) } else { (lo, hi) }
+}
+
+fn sub(a: Vec3, b: Vec3) -> Vec3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn cross(a: Vec3, b: Vec3) -> Vec3 {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+fn dot(a: Vec3, b: Vec3) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Flat, two-sided Lambert shading of a world triangle in `color` (RGB in [0, 1]).
+fn shaded(camera: &Camera, triangle: [Vec3; 3], color: Vec3) -> [u8; 3] {
+    let normal = camera.view_of(cross(sub(triangle[1], triangle[0]), sub(triangle[2], triangle[0])));
+    let length = (dot(normal, normal) * dot(LIGHT, LIGHT)).sqrt();
+    let lambert = if length > 0.0 { (dot(normal, LIGHT) / length).abs() } else { 0.0 };
+    let brightness = ((0.3 + 0.7 * lambert) * SHADES).round() / SHADES;
+    color.map(|c| (255.0 * (c * brightness).clamp(0.0, 1.0)).round() as u8)
+}
+
+fn draw_list(canvas: &mut Canvas, camera: &Camera, list: &TriangleList) {
+    for t in list.indices.chunks_exact(3) {
+        let world = [0, 1, 2].map(|k| list.points[t[k] as usize]);
+        canvas.fill_triangle(world.map(|p| camera.project(p)), shaded(camera, world, list.color));
+    }
+}
+
+/// Each plane as a checkered square (cells of two shades of its colour, so that motion over it
+/// shows) around the foot of the drawn box's centre, a little wider than the box.
+fn draw_planes(canvas: &mut Canvas, camera: &Camera, recording: &Recording, (lo, hi): (Vec3, Vec3)) {
+    const CELLS: usize = 12;
+    let centre = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
+    let half = 0.7 * dot(sub(hi, lo), sub(hi, lo)).sqrt().max(0.1);
+    for plane in &recording.planes {
+        let n = plane.normal;
+        let foot = sub(centre, n.map(|c| c * dot(sub(centre, plane.point), n)));
+        let helper = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+        let u = cross(n, helper).map(|c| c / dot(cross(n, helper), cross(n, helper)).sqrt());
+        let v = cross(n, u);
+        // Cell corner (a, b) of the CELLS × CELLS grid, projected.
+        let corner = |a: usize, b: usize| {
+            let (s, t) = (half * (2.0 * a as f32 / CELLS as f32 - 1.0), half * (2.0 * b as f32 / CELLS as f32 - 1.0));
+            camera.project([0, 1, 2].map(|k| foot[k] + s * u[k] + t * v[k]))
+        };
+        for a in 0..CELLS {
+            for b in 0..CELLS {
+                let shade = if (a + b) % 2 == 0 { 1.0 } else { 0.92 };
+                let color = plane.color.map(|c| (255.0 * (shade * c).clamp(0.0, 1.0)).round() as u8);
+                let [c0, c1, c2, c3] = [corner(a, b), corner(a + 1, b), corner(a + 1, b + 1), corner(a, b + 1)];
+                canvas.fill_triangle([c0, c1, c2], color);
+                canvas.fill_triangle([c0, c2, c3], color);
+            }
+        }
+    }
+}
+
+/// Writes text over an RGB picture with the bundled font.
+fn draw_labels(rgb: &mut [u8], (width, height): (usize, usize), labels: &[(&str, (i32, i32))]) -> Result<()> {
+    register_font();
+    let area = BitMapBackend::with_buffer(rgb, (width as u32, height as u32)).into_drawing_area();
+    let style = TextStyle::from((FONT, 15).into_font()).color(&BLACK);
+    for (text, position) in labels {
+        area.draw_text(text, &style, *position).map_err(|e| anyhow!("drawing text: {e:?}"))?;
+    }
+    area.present().map_err(|e| anyhow!("drawing text: {e:?}"))?;
+    Ok(())
+}
+
+/// One recording at one instant: ground, colliders, surface, time and backend.
+fn panel(
+    recording: &Recording,
+    time: f64,
+    camera: &Camera,
+    bounds: (Vec3, Vec3),
+    size: (usize, usize),
+) -> Result<Canvas> {
+    let mut canvas = Canvas::new(size.0, size.1, BACKGROUND);
+    draw_planes(&mut canvas, camera, recording, bounds);
+    let frame = frame_at(recording, time);
+    for list in recording.meshes.iter().chain(&frame.lists) {
+        draw_list(&mut canvas, camera, list);
+    }
+    let clock = format!("t = {:.2} s", frame.time);
+    let name = format!("{}: {}", recording.backend.as_deref().unwrap_or("backend not recorded"), recording.scene);
+    draw_labels(&mut canvas.rgb, size, &[(&clock, (8, 6)), (&name, (8, size.1 as i32 - 22))])?;
+    Ok(canvas)
+}
+
+fn write_png(path: &std::path::Path, rgb: &[u8], (width, height): (usize, usize)) -> Result<()> {
+    let context = || format!("cannot write {}", path.display());
+    let mut backend = BitMapBackend::new(path, (width as u32, height as u32));
+    backend
+        .blit_bitmap((0, 0), (width as u32, height as u32), rgb)
+        .map_err(|e| anyhow!("{e:?}"))
+        .with_context(context)?;
+    backend.present().map_err(|e| anyhow!("{e:?}")).with_context(context)
+}
+
+/// Renders the recordings: PNGs in `out/<name>/`, and `out/<name>.gif` with `--gif`.
+pub fn render(args: RenderArgs) -> Result<()> {
+    if args.files.len() > 1 && !args.grid {
+        bail!("{} recordings given: use --grid to draw them side by side, or give one", args.files.len());
+    }
+    let clock = Instant::now();
+    let recordings: Vec<Recording> = args.files.iter().map(|f| recording::read(f)).collect::<Result<_>>()?;
+    let read_seconds = clock.elapsed().as_secs_f64();
+    // The instants: every `every`-th frame of the recording that lasts longest (the others show
+    // their last frame at or before each).
+    let end = |r: &Recording| r.frames.last().map_or(0.0, |f| f.time);
+    let longest = recordings.iter().max_by(|a, b| end(a).total_cmp(&end(b))).context("no recording given")?;
+    let instants: Vec<f64> = longest.frames.iter().step_by(args.every.max(1)).map(|f| f.time).collect();
+    let (width, height) = args.size;
+    // Each recording fills its own picture (a drop from 0.3 m and a bunny standing on the ground
+    // need different scales to show anything).
+    let views: Vec<(Camera, (Vec3, Vec3))> = recordings
+        .iter()
+        .map(|r| {
+            let (lo, hi) = bounds(r);
+            (Camera::fitting(args.camera.0, args.camera.1, lo, hi, 0.06, width, height), (lo, hi))
+        })
+        .collect();
+
+    let columns = if recordings.len() <= 3 { recordings.len() } else { recordings.len().div_ceil(2) };
+    let rows = recordings.len().div_ceil(columns);
+    let sheet_size = (columns * width, rows * height);
+    let name = if args.grid {
+        "grid".to_string()
+    } else {
+        args.files[0].file_stem().map_or_else(|| "render".into(), |s| s.to_string_lossy().into_owned())
+    };
+    let png_dir = args.out.join(&name);
+    std::fs::create_dir_all(&png_dir).with_context(|| format!("cannot create {}", png_dir.display()))?;
+    let gif_path = args.out.join(format!("{name}.gif"));
+    let mut gif = if args.gif { Some(GifWriter::create(&gif_path, sheet_size.0, sheet_size.1)?) } else { None };
+
+    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(instants.len() as u64) };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40.cyan/blue} {pos}/{len} frames  {per_sec}  eta {eta}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    let mut sheet = vec![0u8; 3 * sheet_size.0 * sheet_size.1];
+    for (k, &time) in instants.iter().enumerate() {
+        for (r, (recording, (camera, bounds))) in recordings.iter().zip(&views).enumerate() {
+            let canvas = panel(recording, time, camera, *bounds, args.size)?;
+            let (x0, y0) = (r % columns * width, r / columns * height);
+            for y in 0..height {
+                let row = 3 * ((y0 + y) * sheet_size.0 + x0);
+                sheet[row..row + 3 * width].copy_from_slice(&canvas.rgb[3 * y * width..3 * (y + 1) * width]);
+            }
+        }
+        write_png(&png_dir.join(format!("{k:04}.png")), &sheet, sheet_size)?;
+        if let Some(gif) = gif.as_mut() {
+            gif.add(&sheet, time)?;
+        }
+        bar.inc(1);
+    }
+    if let Some(gif) = gif {
+        gif.finish()?;
+    }
+    bar.finish_and_clear();
+    let seconds = clock.elapsed().as_secs_f64();
+    eprintln!(
+        "{} frames of {} × {} in {:.1} s ({:.1} s reading): {}/0000.png …",
+        instants.len(),
+        sheet_size.0,
+        sheet_size.1,
+        seconds,
+        read_seconds,
+        png_dir.display()
+    );
+    if args.gif {
+        let bytes = std::fs::metadata(&gif_path).map(|m| m.len()).unwrap_or(0);
+        eprintln!("{} ({} kB)", gif_path.display(), bytes / 1000);
+    }
+    if recordings.iter().any(|r| r.planes.is_empty()) {
+        eprintln!(
+            "note: a recording without planes in /colliders is drawn without a ground (recorded before planes were)"
+        );
+    }
+    Ok(())
+}
