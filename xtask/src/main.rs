@@ -57,15 +57,15 @@ enum Command {
         /// The same instants of every recording side by side, each labelled with its backend.
         #[arg(long)]
         grid: bool,
-        /// Output directory: PNGs in DIR/<name>/, the GIF as DIR/<name>.gif (name: the file's
-        /// stem, or "grid").
+        /// Output directory: PNGs in DIR/<name>/, the GIF as DIR/<name>.gif (name: the first
+        /// file's stem, with "_grid" after it for --grid).
         #[arg(long, default_value = "out/render")]
         out: PathBuf,
         /// Draw every N-th recorded frame.
         #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
         every: u32,
         /// Viewer's azimuth (from +x towards +y) and elevation in degrees.
-        #[arg(long, default_value = "-70,20", allow_hyphen_values = true)]
+        #[arg(long, default_value = "-60,25", allow_hyphen_values = true)]
         camera: String,
         /// Size of one picture, WIDTHxHEIGHT in pixels.
         #[arg(long, default_value = "480x360")]

@@ -162,7 +162,9 @@ fn panel(
     for list in recording.meshes.iter().chain(&frame.lists) {
         draw_list(&mut canvas, camera, list);
     }
-    let clock = format!("t = {:.2} s", frame.time);
+    // A recording that ended before this instant holds its last frame, and says so.
+    let ended = time > frame.time + 1e-6 && std::ptr::eq(frame, recording.frames.last().unwrap_or(frame));
+    let clock = format!("t = {:.2} s{}", frame.time, if ended { " (ended)" } else { "" });
     let name = format!("{}: {}", recording.backend.as_deref().unwrap_or("backend not recorded"), recording.scene);
     draw_labels(&mut canvas.rgb, size, &[(&clock, (8, 6)), (&name, (8, size.1 as i32 - 22))])?;
     Ok(canvas)
@@ -178,7 +180,8 @@ fn write_png(path: &std::path::Path, rgb: &[u8], (width, height): (usize, usize)
     backend.present().map_err(|e| anyhow!("{e:?}")).with_context(context)
 }
 
-/// Renders the recordings: PNGs in `out/<name>/`, and `out/<name>.gif` with `--gif`.
+/// Renders the recordings: PNGs in `out/<name>/`, and `out/<name>.gif` with `--gif` (name: the
+/// first file's stem, with `_grid` after it for `--grid`).
 pub fn render(args: RenderArgs) -> Result<()> {
     if args.files.len() > 1 && !args.grid {
         bail!("{} recordings given: use --grid to draw them side by side, or give one", args.files.len());
@@ -205,11 +208,8 @@ pub fn render(args: RenderArgs) -> Result<()> {
     let columns = if recordings.len() <= 3 { recordings.len() } else { recordings.len().div_ceil(2) };
     let rows = recordings.len().div_ceil(columns);
     let sheet_size = (columns * width, rows * height);
-    let name = if args.grid {
-        "grid".to_string()
-    } else {
-        args.files[0].file_stem().map_or_else(|| "render".into(), |s| s.to_string_lossy().into_owned())
-    };
+    let stem = args.files[0].file_stem().map_or_else(|| "render".into(), |s| s.to_string_lossy().into_owned());
+    let name = if args.grid { format!("{stem}_grid") } else { stem };
     let png_dir = args.out.join(&name);
     std::fs::create_dir_all(&png_dir).with_context(|| format!("cannot create {}", png_dir.display()))?;
     let gif_path = args.out.join(format!("{name}.gif"));
