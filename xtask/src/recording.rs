@@ -255,4 +255,34 @@ mod tests {
         let error = format!("{:#}", read(&path).unwrap_err());
         assert!(error.contains("stats_only.mcap has no /surface frames"), "{error}");
     }
+
+    #[test]
+    fn planes_scene_and_backend_come_back_as_recorded() {
+        use cleave_core::{Point3, Vector3};
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("planes.mcap");
+        let tilted = Vector3::new(0.3, -0.4, 0.5).normalize();
+        let planes = [
+            (Point3::new(0.0, 0.0, -0.25), Vector3::z()),
+            (Point3::new(1.0, 2.0, 3.0), tilted),
+            (Point3::new(0.0, 0.0, 1.0), -Vector3::z()),
+        ];
+        let mut recorder = cleave_scene::Recorder::create(&path, "three planes", "dg-ip-1", 1).unwrap();
+        recorder.colliders(&[], &planes).unwrap();
+        let points = [Point3::origin(), Point3::new(1.0, 0.0, 0.0), Point3::new(0.0, 1.0, 0.0)];
+        recorder.surface(0.25, &points, &[[0, 1, 2]], &[true], &[]).unwrap();
+        recorder.finish().unwrap();
+        let recording = read(&path).unwrap();
+        assert_eq!((recording.scene.as_str(), recording.backend.as_deref()), ("three planes", Some("dg-ip-1")));
+        assert_eq!(recording.planes.len(), 3);
+        for (got, (point, normal)) in recording.planes.iter().zip(&planes) {
+            for k in 0..3 {
+                assert!((got.point[k] as f64 - point[k]).abs() < 1e-6, "{:?} vs {point}", got.point);
+                assert!((got.normal[k] as f64 - normal[k]).abs() < 1e-6, "{:?} vs {normal}", got.normal);
+            }
+        }
+        let frame = &recording.frames[0];
+        assert_eq!((frame.time, frame.lists.len(), frame.lists[0].indices.as_slice()), (0.25, 1, &[0, 1, 2][..]));
+        assert_eq!(frame.lists[0].color, [0.8, 0.15, 0.15], "cut faces are recorded red");
+    }
 }

@@ -255,10 +255,93 @@ pub fn render(args: RenderArgs) -> Result<()> {
         let bytes = std::fs::metadata(&gif_path).map(|m| m.len()).unwrap_or(0);
         eprintln!("{} ({} kB)", gif_path.display(), bytes / 1000);
     }
-    if recordings.iter().any(|r| r.planes.is_empty()) {
-        eprintln!(
-            "note: a recording without planes in /colliders is drawn without a ground (recorded before planes were)"
-        );
+    for (file, recording) in args.files.iter().zip(&recordings) {
+        if recording.planes.is_empty() {
+            // Not an error: a scene may have no plane (a bowl), and older recordings kept none.
+            eprintln!("note: {} records no plane collider, so no ground is drawn", file.display());
+        }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cleave_core::{Point3, Vector3};
+
+    /// A recording of a 0.2 m square standing on the ground plane z = 0 in the plane y = 0 (one
+    /// half an original face, the other a cut face), rising 0.1 m per frame.
+    fn square_recording(dir: &std::path::Path, frames: usize) -> PathBuf {
+        let path = dir.join("square.mcap");
+        let mut recorder = cleave_scene::Recorder::create(&path, "square", "virtualnode", 1).unwrap();
+        recorder.colliders(&[], &[(Point3::origin(), Vector3::z())]).unwrap();
+        for k in 0..frames {
+            let z = 0.1 * k as f64;
+            let points = [(-0.1, z), (0.1, z), (0.1, z + 0.2), (-0.1, z + 0.2)].map(|(x, z)| Point3::new(x, 0.0, z));
+            recorder.surface(0.5 * k as f64, &points, &[[0, 1, 2], [0, 2, 3]], &[false, true], &[]).unwrap();
+        }
+        recorder.finish().unwrap();
+        path
+    }
+
+    fn shoelace(v: [Vec3; 3]) -> f32 {
+        0.5 * ((v[1][0] - v[0][0]) * (v[2][1] - v[0][1]) - (v[2][0] - v[0][0]) * (v[1][1] - v[0][1])).abs()
+    }
+
+    #[test]
+    fn cut_faces_original_faces_and_ground_each_show_in_their_colour() {
+        let dir = tempfile::tempdir().unwrap();
+        let recording = recording::read(&square_recording(dir.path(), 1)).unwrap();
+        let (lo, hi) = bounds(&recording);
+        let camera = Camera::fitting(-90.0, 30.0, lo, hi, 0.06, 200, 150);
+        let canvas = panel(&recording, 0.0, &camera, (lo, hi), (200, 150)).unwrap();
+        let pixels: Vec<[i32; 3]> = canvas.rgb.chunks_exact(3).map(|p| [0, 1, 2].map(|c| i32::from(p[c]))).collect();
+        // Recorded colours: original (0.85, 0.62, 0.38), cut (0.80, 0.15, 0.15), ground grey.
+        let red = pixels.iter().filter(|p| p[0] > 40 && p[1] * 3 < p[0]).count() as f32;
+        let tan = pixels.iter().filter(|p| p[1] * 3 > p[0] && p[2] * 2 < p[1] + p[0] / 4 && p[0] > p[1]).count() as f32;
+        let ground = pixels.iter().filter(|p| p[0] == p[1] && p[1] == p[2] && (150..=215).contains(&p[0])).count();
+        // Each half of the square covers its projected area (an orthographic view keeps equal
+        // areas of one plane equal).
+        let corners = [[-0.1, 0.0, 0.0], [0.1, 0.0, 0.0], [0.1, 0.0, 0.2], [-0.1, 0.0, 0.2]].map(|p| camera.project(p));
+        let area = shoelace([corners[0], corners[1], corners[2]]);
+        assert!(area > 2000.0, "{area}");
+        for (what, count) in [("cut", red), ("original", tan)] {
+            assert!((count - area).abs() < 0.05 * area, "{what} face: {count} pixels, projected area {area}");
+        }
+        assert!(ground > 2000, "ground: {ground} pixels");
+    }
+
+    #[test]
+    fn every_frame_becomes_a_png_and_a_gif_frame() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = square_recording(dir.path(), 3);
+        let out = dir.path().join("render");
+        let args = |files: Vec<PathBuf>, grid: bool| RenderArgs {
+            files,
+            grid,
+            out: out.clone(),
+            every: 1,
+            camera: (-60.0, 25.0),
+            size: (160, 120),
+            gif: true,
+            quiet: true,
+        };
+        render(args(vec![path.clone()], false)).unwrap();
+        render(args(vec![path.clone(), path.clone()], true)).unwrap();
+        for (name, width) in [("square", 160), ("square_grid", 320)] {
+            let pngs = std::fs::read_dir(out.join(name)).unwrap().count();
+            assert_eq!(pngs, 3, "{name}");
+            let mut decoder = gif::DecodeOptions::new()
+                .read_info(std::fs::File::open(out.join(format!("{name}.gif"))).unwrap())
+                .unwrap();
+            assert_eq!((decoder.width(), decoder.height()), (width, 120));
+            let mut frames = 0;
+            while decoder.read_next_frame().unwrap().is_some() {
+                frames += 1;
+            }
+            assert_eq!(frames, 3, "{name}");
+        }
+        let error = format!("{:#}", render(args(vec![path.clone(), path], false)).unwrap_err());
+        assert!(error.contains("use --grid"), "{error}");
+    }
 }
