@@ -1,7 +1,7 @@
 //! A small software rasterizer for `cargo xtask render`: an orthographic camera and a canvas
 //! that fills triangles with a depth buffer (RGB, 8 bits per channel).
 
-use crate::recording::Vec3;
+use crate::recording::{Vec3, cross, dot, normalized};
 
 /// An orthographic camera looking at `target` from azimuth and elevation, `scale` pixels per
 /// metre, the target at the middle of a `width` × `height` picture.
@@ -15,19 +15,6 @@ pub struct Camera {
     scale: f32,
     width: usize,
     height: usize,
-}
-
-fn dot(a: Vec3, b: Vec3) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn normalized(a: Vec3) -> Vec3 {
-    let n = dot(a, a).sqrt();
-    a.map(|c| c / n)
-}
-
-fn cross(a: Vec3, b: Vec3) -> Vec3 {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
 impl Camera {

@@ -10,6 +10,23 @@ use std::path::Path;
 /// A point or vector in world coordinates [m].
 pub type Vec3 = [f32; 3];
 
+pub fn sub(a: Vec3, b: Vec3) -> Vec3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+pub fn dot(a: Vec3, b: Vec3) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+pub fn cross(a: Vec3, b: Vec3) -> Vec3 {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+pub fn normalized(a: Vec3) -> Vec3 {
+    let length = dot(a, a).sqrt();
+    a.map(|c| c / length)
+}
+
 /// Triangles of one colour: `indices[3k..3k + 3]` index `points`.
 #[derive(Debug, Clone)]
 pub struct TriangleList {
@@ -128,10 +145,6 @@ impl Pose {
         let o = self.position;
         [p[0] + q.w * t[0] + r[0] + o.x, p[1] + q.w * t[1] + r[1] + o.y, p[2] + q.w * t[2] + r[2] + o.z]
     }
-}
-
-fn cross(a: Vec3, b: Vec3) -> Vec3 {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
 impl TrianglesJson {

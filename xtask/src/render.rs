@@ -1,12 +1,12 @@
 //! `cargo xtask render`: recorded `/surface` frames drawn to PNG (and an animated GIF) with flat
-//! shading in the recorded colours (cut faces red), the collider planes as a ground, meshes
+//! shading in the recorded colours (cut faces red), the collider planes as a ground, mesh
 //! colliders, the simulated time and the backend's name; `--grid` puts the same instants of
 //! several recordings side by side.
 
 use crate::animation::GifWriter;
 use crate::plots::{FONT, register_font};
 use crate::raster::{Camera, Canvas};
-use crate::recording::{self, Frame, Recording, TriangleList, Vec3};
+use crate::recording::{self, Frame, Recording, TriangleList, Vec3, cross, dot, normalized, sub};
 use anyhow::{Context, Result, anyhow, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use plotters::prelude::*;
@@ -79,18 +79,6 @@ fn bounds(recording: &Recording) -> (Vec3, Vec3) {
     if lo[0] > hi[0] { ([-0.5; 3], [0.5; 3]) } else { (lo, hi) }
 }
 
-fn sub(a: Vec3, b: Vec3) -> Vec3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: Vec3, b: Vec3) -> Vec3 {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-
-fn dot(a: Vec3, b: Vec3) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
 /// Flat, two-sided Lambert shading of a world triangle in `color` (RGB in [0, 1]).
 fn shaded(camera: &Camera, triangle: [Vec3; 3], color: Vec3) -> [u8; 3] {
     let normal = camera.view_of(cross(sub(triangle[1], triangle[0]), sub(triangle[2], triangle[0])));
@@ -117,7 +105,7 @@ fn draw_planes(canvas: &mut Canvas, camera: &Camera, recording: &Recording, (lo,
         let n = plane.normal;
         let foot = sub(centre, n.map(|c| c * dot(sub(centre, plane.point), n)));
         let helper = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
-        let u = cross(n, helper).map(|c| c / dot(cross(n, helper), cross(n, helper)).sqrt());
+        let u = normalized(cross(n, helper));
         let v = cross(n, u);
         // Cell corner (a, b) of the CELLS × CELLS grid, projected.
         let corner = |a: usize, b: usize| {
@@ -221,7 +209,7 @@ pub fn render(args: RenderArgs) -> Result<()> {
             .expect("static template")
             .progress_chars("=> "),
     );
-    let mut sheet = vec![0u8; 3 * sheet_size.0 * sheet_size.1];
+    let mut sheet = BACKGROUND.repeat(sheet_size.0 * sheet_size.1);
     for (k, &time) in instants.iter().enumerate() {
         for (r, (recording, (camera, bounds))) in recordings.iter().zip(&views).enumerate() {
             let canvas = panel(recording, time, camera, *bounds, args.size)?;
