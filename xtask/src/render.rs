@@ -200,6 +200,19 @@ pub fn render(args: RenderArgs) -> Result<()> {
     let name = if args.grid { format!("{stem}_grid") } else { stem };
     let png_dir = args.out.join(&name);
     std::fs::create_dir_all(&png_dir).with_context(|| format!("cannot create {}", png_dir.display()))?;
+    // Frames of an earlier, longer render would otherwise mix with these: remove our own
+    // `NNNN.png` names, nothing else.
+    for entry in std::fs::read_dir(&png_dir).with_context(|| format!("cannot list {}", png_dir.display()))? {
+        let path = entry?.path();
+        let ours = path.extension().is_some_and(|e| e == "png")
+            && path
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .is_some_and(|s| s.len() == 4 && s.bytes().all(|b| b.is_ascii_digit()));
+        if ours {
+            std::fs::remove_file(&path).with_context(|| format!("cannot remove the old frame {}", path.display()))?;
+        }
+    }
     let gif_path = args.out.join(format!("{name}.gif"));
     let mut gif = if args.gif { Some(GifWriter::create(&gif_path, sheet_size.0, sheet_size.1)?) } else { None };
 
@@ -302,7 +315,6 @@ mod tests {
     #[test]
     fn every_frame_becomes_a_png_and_a_gif_frame() {
         let dir = tempfile::tempdir().unwrap();
-        let path = square_recording(dir.path(), 3);
         let out = dir.path().join("render");
         let args = |files: Vec<PathBuf>, grid: bool| RenderArgs {
             files,
@@ -314,7 +326,13 @@ mod tests {
             gif: true,
             quiet: true,
         };
+        // A longer earlier render's frames do not stay behind; other files do.
+        render(args(vec![square_recording(dir.path(), 5)], false)).unwrap();
+        std::fs::write(out.join("square").join("notes.txt"), "kept").unwrap();
+        let path = square_recording(dir.path(), 3);
         render(args(vec![path.clone()], false)).unwrap();
+        assert!(out.join("square").join("notes.txt").exists());
+        std::fs::remove_file(out.join("square").join("notes.txt")).unwrap();
         render(args(vec![path.clone(), path.clone()], true)).unwrap();
         for (name, width) in [("square", 160), ("square_grid", 320)] {
             let pngs = std::fs::read_dir(out.join(name)).unwrap().count();
