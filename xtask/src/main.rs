@@ -1,10 +1,14 @@
 //! `cargo xtask`: cleave's command line. Thin by design: argument parsing, progress, tables,
 //! plots and files; everything else lives in the library crates.
 
+mod animation;
 mod compare;
 mod cutting;
 mod machine;
 mod plots;
+mod raster;
+mod recording;
+mod render;
 mod stability;
 
 use anyhow::{Context, Result};
@@ -41,6 +45,35 @@ enum Command {
         #[arg(long)]
         backend: Option<String>,
         /// No progress bar (for logs and CI).
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Draw a recording's /surface frames to PNG (and an animated GIF): flat shading, cut faces
+    /// in their recorded colour, the ground, the simulated time.
+    Render {
+        /// The recording (several with --grid).
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// The same instants of every recording side by side, each labelled with its backend.
+        #[arg(long)]
+        grid: bool,
+        /// Output directory: PNGs in DIR/<name>/, the GIF as DIR/<name>.gif (name: the first
+        /// file's stem, with "_grid" after it for --grid).
+        #[arg(long, default_value = "out/render")]
+        out: PathBuf,
+        /// Draw every N-th recorded frame.
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+        every: u32,
+        /// Viewer's azimuth (from +x towards +y) and elevation in degrees.
+        #[arg(long, default_value = "-60,25", allow_hyphen_values = true)]
+        camera: String,
+        /// Size of one picture, WIDTHxHEIGHT in pixels.
+        #[arg(long, default_value = "480x360")]
+        size: String,
+        /// Also write an animated GIF, played in simulated time.
+        #[arg(long)]
+        gif: bool,
+        /// No progress bar.
         #[arg(long)]
         quiet: bool,
     },
@@ -103,6 +136,19 @@ fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Run { scene, out, steps, backend, quiet } => run(scene, out, steps, backend.as_deref(), quiet),
+        Command::Render { files, grid, out, every, camera, size, gif, quiet } => render::parse_camera(&camera)
+            .and_then(|camera| {
+                render::render(render::RenderArgs {
+                    files,
+                    grid,
+                    out,
+                    every: every as usize,
+                    camera,
+                    size: render::parse_size(&size)?,
+                    gif,
+                    quiet,
+                })
+            }),
         Command::Backends => {
             println!("| backend | cut | fracture | refine | method |");
             println!("|---|---|---|---|---|");

@@ -2,7 +2,7 @@
 //! per-step statistics and timeline events as JSON on their own channels. Chunks are flushed to
 //! disk every few frames so a killed run keeps what it computed; `finish` writes the summary.
 
-use cleave_core::{Point3, Real};
+use cleave_core::{Point3, Real, Vector3};
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -109,13 +109,30 @@ fn finite(v: Real) -> f32 {
     if v.is_finite() { v as f32 } else { 0.0 }
 }
 
+/// Side of the square a plane collider is drawn as in `/colliders` [m].
+pub const PLANE_SIDE: f32 = 2.0;
+
+/// The unit quaternion `[x, y, z, w]` turning +z into the unit vector `n` (the shortest arc;
+/// half a turn about x when `n` is −z).
+fn rotation_from_z(n: &Vector3<Real>) -> [f32; 4] {
+    let n = n.normalize();
+    if n.z < -1.0 + 1e-9 {
+        return [1.0, 0.0, 0.0, 0.0];
+    }
+    // (1 + z·n, z × n) normalized: half the angle between z and n about their common normal.
+    let q = [-n.y, n.x, 0.0, 1.0 + n.z];
+    let norm = q.iter().map(|c| c * c).sum::<Real>().sqrt();
+    q.map(|c| (c / norm) as f32)
+}
+
 fn nanoseconds(time: Real) -> u64 {
     (time.max(0.0) * 1e9).round() as u64
 }
 
 impl Recorder {
-    /// Creates the file and declares the channels.
-    pub fn create(path: &Path, scene_name: &str, flush_every: u32) -> Result<Self, RecordError> {
+    /// Creates the file and declares the channels; every channel's metadata names the scene and
+    /// the backend (what `cargo xtask render` labels a picture with).
+    pub fn create(path: &Path, scene_name: &str, backend: &str, flush_every: u32) -> Result<Self, RecordError> {
         let error = |message: String| RecordError { path: path.to_path_buf(), message };
         if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
             std::fs::create_dir_all(parent).map_err(|e| error(format!("cannot create directory: {e}")))?;
@@ -131,6 +148,7 @@ impl Recorder {
             .map_err(|e| error(e.to_string()))?;
         let mut metadata = BTreeMap::new();
         metadata.insert("scene".to_string(), scene_name.to_string());
+        metadata.insert("backend".to_string(), backend.to_string());
         let mut channel = |schema_name: &str, schema: &str, topic: &str| -> Result<u16, RecordError> {
             let schema_id =
                 writer.add_schema(schema_name, "jsonschema", schema.as_bytes()).map_err(|e| error(e.to_string()))?;
@@ -264,10 +282,17 @@ impl Recorder {
         self.write_bytes(self.surface, time, json.as_bytes())
     }
 
-    /// Records the static mesh colliders (vertices and triangles of each) once, as one entity
-    /// that never expires, so that a viewer shows the bowl or table the body meets.
-    pub fn colliders(&mut self, meshes: &[cleave_geometry::TriangleMesh]) -> Result<(), RecordError> {
-        if meshes.is_empty() {
+    /// Records the static colliders once, as one entity that never expires, so that a viewer
+    /// shows the ground, bowl or table the body meets: each mesh as a triangle list, each plane
+    /// (`(point, unit normal)`) as a square of zero thickness, [`PLANE_SIDE`] wide, centred on
+    /// its point with its local z along the normal (`cargo xtask render` reads the plane back
+    /// from that pose).
+    pub fn colliders(
+        &mut self,
+        meshes: &[cleave_geometry::TriangleMesh],
+        planes: &[(Point3<Real>, Vector3<Real>)],
+    ) -> Result<(), RecordError> {
+        if meshes.is_empty() && planes.is_empty() {
             return Ok(());
         }
         let lists: Vec<Value> = meshes
@@ -283,12 +308,26 @@ impl Recorder {
                 })
             })
             .collect();
+        let cubes: Vec<Value> = planes
+            .iter()
+            .map(|(point, normal)| {
+                let q = rotation_from_z(normal);
+                json!({
+                    "pose": {
+                        "position": { "x": finite(point.x), "y": finite(point.y), "z": finite(point.z) },
+                        "orientation": { "x": q[0], "y": q[1], "z": q[2], "w": q[3] },
+                    },
+                    "size": { "x": PLANE_SIDE, "y": PLANE_SIDE, "z": 0.0 },
+                    "color": { "r": 0.78, "g": 0.78, "b": 0.78, "a": 1.0 },
+                })
+            })
+            .collect();
         let update = json!({
             "deletions": [],
             "entities": [{
                 "timestamp": { "sec": 0, "nsec": 0 }, "frame_id": "world", "id": "colliders",
                 "lifetime": { "sec": 0, "nsec": 0 }, "frame_locked": false, "metadata": [],
-                "arrows": [], "cubes": [], "spheres": [], "cylinders": [], "lines": [], "texts": [],
+                "arrows": [], "cubes": cubes, "spheres": [], "cylinders": [], "lines": [], "texts": [],
                 "models": [], "triangles": lists,
             }],
         });

@@ -417,12 +417,13 @@ impl Simulation {
                 Solver::ConjugateGradient { tolerance: tolerance.0, max_iterations, assembled }
             }
         };
+        let plane_colliders: Vec<_> = constraints.planes.iter().map(|p| (p.point, p.normal)).collect();
         let integrator = Integrator::new(discretization.as_ref(), settings, constraints)
             .map_err(|source| SceneError::Step { path: path.clone(), source })?;
 
         let output_path = output.map(Path::to_path_buf).or_else(|| scene.output.mcap.as_ref().map(PathBuf::from));
         let recorder = match output_path {
-            Some(p) => Some(Recorder::create(&p, &scene.name, scene.output.flush_every)?),
+            Some(p) => Some(Recorder::create(&p, &scene.name, &info.backend, scene.output.flush_every)?),
             None => None,
         };
         let mut simulation = Self {
@@ -454,7 +455,7 @@ impl Simulation {
                 i.backend, i.elements, i.dofs, i.element_size, i.surface_triangles
             );
             recorder.event(0.0, "start", &message)?;
-            recorder.colliders(&collider_meshes)?;
+            recorder.colliders(&collider_meshes, &plane_colliders)?;
         }
         simulation.record_surface()?;
         let initial = simulation.integrator.energies(simulation.discretization.as_ref());
