@@ -197,6 +197,61 @@ fn main() {
     }
 }
 
+/// Contact over a run, for the summary: the most active contacts of each kind in one step, the
+/// deepest penetration, and the time finding contacts and growing the pattern for them.
+#[derive(Default)]
+struct ContactTotals {
+    most: [usize; 4],
+    deepest: f64,
+    finding: f64,
+    pattern: f64,
+    wall: f64,
+    triangles: (usize, usize),
+}
+
+impl ContactTotals {
+    fn add(&mut self, report: &cleave_scene::StepReport, wall: f64, triangles: usize) {
+        let c = &report.contacts;
+        for (most, now) in self.most.iter_mut().zip([c.planes, c.meshes, c.surface, c.edges]) {
+            *most = (*most).max(now);
+        }
+        self.deepest = self.deepest.max(c.max_penetration);
+        self.finding += report.seconds.contact;
+        self.pattern += report.seconds.pattern;
+        self.wall += wall;
+        self.triangles = if self.triangles.1 == 0 {
+            (triangles, triangles)
+        } else {
+            (self.triangles.0.min(triangles), self.triangles.1.max(triangles))
+        };
+    }
+
+    fn print(&self, steps: u64) {
+        if self.most.iter().all(|&m| m == 0) || steps == 0 {
+            return;
+        }
+        let per_step = |x: f64| 1e3 * x / steps as f64;
+        println!();
+        println!(
+            "| most contacts: planes | meshes | surface | edges | deepest [mm] | surface triangles | finding [ms/step] | pattern [ms/step] | share of the step |"
+        );
+        println!("|---|---|---|---|---|---|---|---|---|");
+        println!(
+            "| {} | {} | {} | {} | {:.3} | {}–{} | {:.2} | {:.2} | {:.0} % |",
+            self.most[0],
+            self.most[1],
+            self.most[2],
+            self.most[3],
+            1e3 * self.deepest,
+            self.triangles.0,
+            self.triangles.1,
+            per_step(self.finding),
+            per_step(self.pattern),
+            100.0 * (self.finding + self.pattern) / self.wall.max(1e-12)
+        );
+    }
+}
+
 fn run(
     scene_path: PathBuf,
     out: Option<PathBuf>,
@@ -240,6 +295,7 @@ fn run(
     let mut last_report = None;
     let mut failure = None;
     let mut frame_walls = [(0.0f64, 0usize); 2];
+    let mut contact_totals = ContactTotals::default();
     while simulation.steps_done() < total {
         if interrupted.load(Ordering::SeqCst) {
             failure = Some(format!("interrupted by Ctrl-C after {} steps", simulation.steps_done()));
@@ -261,6 +317,7 @@ fn run(
                 }
                 iterations += report.iterations;
                 max_inverted = max_inverted.max(report.inverted_elements);
+                contact_totals.add(&report, step_wall, simulation.surface_triangle_count());
                 first_energy.get_or_insert(report.total_energy());
                 bar.set_message(format!("E = {:.3e} J, {} contacts", report.total_energy(), report.active_contacts));
                 bar.inc(1);
@@ -300,6 +357,7 @@ fn run(
         iterations as f64 / done.max(1) as f64,
         max_inverted
     );
+    contact_totals.print(done);
     let cuts = simulation_cuts;
     if cuts.changes > 0 || !cuts.pieces.is_empty() {
         let (volume_drift, mass_drift) = cuts.drift();

@@ -5,6 +5,7 @@ pub mod record;
 pub mod run;
 pub mod schema;
 
+pub use cleave_integrator::StepReport;
 pub use record::{EVENTS_TOPIC, Recorder, STATS_TOPIC, SURFACE_TOPIC};
 pub use run::{BuildInfo, LoadedScene, SceneError, Simulation, load_scene};
 pub use schema::Scene;

@@ -672,6 +672,11 @@ impl Simulation {
         Ok(report)
     }
 
+    /// Triangles of the render surface now (the surface contact searches the same ones).
+    pub fn surface_triangle_count(&self) -> usize {
+        self.surface_triangles.len()
+    }
+
     /// Ends the run: records the outcome as an event and closes the file.
     pub fn finish(mut self, failure: Option<&str>) -> Result<(), SceneError> {
         let time = self.integrator.time();
