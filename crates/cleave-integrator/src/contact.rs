@@ -276,6 +276,11 @@ impl ContactSet {
                     set.component_cut_triangles[c].push(t as u32);
                 }
             }
+            for c in 0..set.component_cut_triangles.len() {
+                if !set.holds_both_faces_of_a_cut(c, &surface.triangles) {
+                    set.component_cut_triangles[c].clear();
+                }
+            }
             let mut rings: Vec<Vec<u32>> = (0..points.len() as u32).map(|i| vec![i]).collect();
             for t in &surface.triangles {
                 for &a in t {
@@ -294,6 +299,47 @@ impl ContactSet {
             set.find_edges(&surface.triangles);
         }
         set
+    }
+
+    /// Whether component `c` holds both faces of some cut: two of its cut triangles coincide in
+    /// the rest shape with opposite normals (an unfinished cut, or a flap still attached). Only
+    /// then can a point of the component meet the component's own cut faces; a component
+    /// whose cuts went through has the other face in another component, and searching its
+    /// own cut faces only visits coplanar neighbours (55 % of all candidates on bunny_slice).
+    fn holds_both_faces_of_a_cut(&self, c: usize, triangles: &[[u32; 3]]) -> bool {
+        let list = &self.component_cut_triangles[c];
+        if list.len() < 2 {
+            return false;
+        }
+        let corners = |t: u32| triangles[t as usize].map(|k| self.rest[k as usize]);
+        let size = |[a, b, c]: [Point3<Real>; 3]| (b - a).norm().max((c - a).norm()).max((c - b).norm());
+        let leaves: Vec<Aabb> = list
+            .iter()
+            .map(|&t| {
+                let [a, b, c] = corners(t);
+                let margin = Vector3::repeat(1e-9 * size([a, b, c]));
+                Aabb::new(to_parry(&(a.inf(&b).inf(&c) - margin)), to_parry(&(a.sup(&b).sup(&c) + margin)))
+            })
+            .collect();
+        let bvh = Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves);
+        list.iter().any(|&t| {
+            let [a, b, c] = corners(t);
+            let normal = (b - a).cross(&(c - a));
+            let centroid = Point3::from((a.coords + b.coords + c.coords) / 3.0);
+            let tolerance = 1e-9 * size([a, b, c]);
+            let query = Aabb::new(
+                to_parry(&(centroid - Vector3::repeat(tolerance))),
+                to_parry(&(centroid + Vector3::repeat(tolerance))),
+            );
+            bvh.intersect_aabb(&query).any(|leaf| {
+                let u = list[leaf as usize];
+                let other = corners(u);
+                let other_normal = (other[1] - other[0]).cross(&(other[2] - other[0]));
+                u != t
+                    && normal.dot(&other_normal) < 0.0
+                    && (closest_point_on_triangle(&centroid, &other).0 - centroid).norm() <= tolerance
+            })
+        })
     }
 
     /// The surface's edges, their faces, the feature edges and each component's edges.
