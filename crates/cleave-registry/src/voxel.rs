@@ -59,8 +59,8 @@ impl CompareBackend for VoxelBackend {
         if variant != "trilinear" {
             return Err(CutError::Build(format!("voxel has no variant {variant:?} (only \"trilinear\")")));
         }
-        let mesh =
-            VoxelMesh::from_box(*material, grid.origin, grid.h, grid.dims).map_err(|e| CutError::Build(e.to_string()))?;
+        let mesh = VoxelMesh::from_box(*material, grid.origin, grid.h, grid.dims)
+            .map_err(|e| CutError::Build(e.to_string()))?;
         let faces = covered_faces(&mesh, surface)?;
         let (cut, change) = mesh.separate_faces(&faces).map_err(|e| CutError::Build(e.to_string()))?;
         let elements = cut.num_cubes();
@@ -153,7 +153,8 @@ pub fn covered_faces(mesh: &VoxelMesh, surface: &CutSurface) -> Result<Vec<CubeF
 /// Whether the 2D point `p` lies in the closed triangle `t` (either orientation), with `tolerance`
 /// as a distance.
 fn in_triangle(t: &[[Real; 2]; 3], p: &[Real; 2], tolerance: Real) -> bool {
-    let cross = |a: &[Real; 2], b: &[Real; 2], c: &[Real; 2]| (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+    let cross =
+        |a: &[Real; 2], b: &[Real; 2], c: &[Real; 2]| (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
     let area = cross(&t[0], &t[1], &t[2]);
     if area == 0.0 {
         return false;

@@ -194,7 +194,13 @@ pub mod crack {
     /// triangles in rest space that reach `overhang` past the box on the three open sides (y
     /// below and above, z above), so the crack goes through the whole width and out of the top
     /// face, and ends inside the material exactly at z = `front_z`.
-    pub fn half_plane(lo: &Point3<Real>, hi: &Point3<Real>, x_plane: Real, front_z: Real, overhang: Real) -> CutSurface {
+    pub fn half_plane(
+        lo: &Point3<Real>,
+        hi: &Point3<Real>,
+        x_plane: Real,
+        front_z: Real,
+        overhang: Real,
+    ) -> CutSurface {
         let (y0, y1, z1) = (lo.y - overhang, hi.y + overhang, hi.z + overhang);
         let corners = [
             Point3::new(x_plane, y0, front_z),

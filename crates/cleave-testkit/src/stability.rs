@@ -124,7 +124,12 @@ pub fn cells() -> Vec<Cell> {
     for placement in CrackPlacement::ALL {
         for youngs_modulus in CUT_YOUNGS_MODULI {
             for poisson_ratio in CUT_POISSON_RATIOS {
-                cells.push(Cell { youngs_modulus, poisson_ratio, time_step: CUT_TIME_STEP, start: Start::Cut(placement) });
+                cells.push(Cell {
+                    youngs_modulus,
+                    poisson_ratio,
+                    time_step: CUT_TIME_STEP,
+                    start: Start::Cut(placement),
+                });
             }
         }
     }
