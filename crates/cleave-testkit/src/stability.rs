@@ -94,7 +94,7 @@ impl Cell {
     }
 }
 
-/// Young's moduli, Poisson ratios and the time step of the cut cells.
+/// Young's moduli of the cut cells [Pa].
 pub const CUT_YOUNGS_MODULI: [Real; 2] = [1e6, 1e12];
 /// Poisson ratios of the cut cells.
 pub const CUT_POISSON_RATIOS: [Real; 2] = [0.3, 0.4999];
