@@ -11,9 +11,9 @@ use crate::plots;
 use anyhow::{Context, Result, bail};
 use cleave_registry::backends;
 use cleave_testkit::compare::{
-    CSV_HEADER, CompareBackend, DYNAMIC_STEPS, KAUFMANN2008_TABLE1, Problem, Row, StudyObserver, StudyPlan,
-    Table1Timings, TipReference, cantilever_reference, observed_rates, parse_csv, run_study, self_consistency,
-    table1_timings,
+    CSV_HEADER, CUT_DYNAMIC_CUT_STEP, CUT_DYNAMIC_STEPS, CompareBackend, DYNAMIC_STEPS, KAUFMANN2008_TABLE1, Problem,
+    Row, StudyObserver, StudyPlan, Table1Timings, TipReference, cantilever_reference, cut_cantilever_reference,
+    observed_rates, parse_csv, run_study, self_consistency, table1_timings,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use std::fmt::Write as _;
@@ -25,7 +25,8 @@ use std::path::{Path, PathBuf};
 pub struct CompareArgs {
     /// Small levels only (CI).
     pub quick: bool,
-    /// Any of "mms", "cantilever", "dynamic", "table1", "cutting", or "all".
+    /// Any of "mms", "cantilever", "dynamic", "cut-cantilever" (static and dynamic), "table1",
+    /// "cutting", or "all".
     pub problems: Vec<String>,
     /// Backends to run (empty = all registered).
     pub backends: Vec<String>,
@@ -61,9 +62,12 @@ fn selection(names: &[String]) -> Result<Selection> {
             "mms" => problems.extend([Problem::MmsSin111, Problem::MmsCos123]),
             "cantilever" => problems.push(Problem::Cantilever),
             "dynamic" => problems.push(Problem::Dynamic),
+            "cut-cantilever" => problems.extend([Problem::CutCantilever, Problem::CutDynamic]),
             "table1" => table1 = true,
             "cutting" => cutting = true,
-            other => bail!("unknown problem {other:?}: expected mms, cantilever, dynamic, table1, cutting or all"),
+            other => bail!(
+                "unknown problem {other:?}: expected mms, cantilever, dynamic, cut-cantilever, table1, cutting or all"
+            ),
         }
     }
     let problems = Problem::ALL.into_iter().filter(|p| problems.contains(p)).collect();
@@ -228,6 +232,10 @@ pub fn compare(args: CompareArgs) -> Result<()> {
     let csv_path = args.out.join("compare.csv");
     let methods: Vec<(String, String)> =
         chosen.iter().flat_map(|b| b.variants().into_iter().map(|v| (b.name().to_string(), v))).collect();
+    // The cut problems run only for methods that cut.
+    let runs = |problem: Problem, backend: &dyn CompareBackend, variant: &str| {
+        !problem.needs_cutting() || backend.cuts(variant)
+    };
     let redo = |r: &Row| {
         problems.iter().any(|p| p.key() == r.problem) && methods.iter().any(|(b, v)| *b == r.backend && *v == r.variant)
     };
@@ -241,7 +249,11 @@ pub fn compare(args: CompareArgs) -> Result<()> {
         .map(|(_, _, line)| line)
         .collect();
 
-    let studies = (methods.len() * problems.len()) as u64;
+    let studies = chosen
+        .iter()
+        .flat_map(|b| b.variants().into_iter().map(move |v| (b, v)))
+        .map(|(b, v)| problems.iter().filter(|&&p| runs(p, b.as_ref(), &v)).count())
+        .sum::<usize>() as u64;
     let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(studies) };
     bar.set_style(
         ProgressStyle::with_template("{bar:30.cyan/blue} {pos}/{len} studies  {elapsed_precise}  {msg}")
@@ -251,7 +263,7 @@ pub fn compare(args: CompareArgs) -> Result<()> {
     let mut rows = kept;
     for backend in &chosen {
         for variant in backend.variants() {
-            for &problem in &problems {
+            for &problem in problems.iter().filter(|&&p| runs(p, backend.as_ref(), &variant)) {
                 let plan = if args.quick { StudyPlan::quick(problem) } else { StudyPlan::full(args.budget) };
                 let label = format!("{}/{variant}", backend.name());
                 let mut observer = Observer {
@@ -384,8 +396,8 @@ fn report(args: &CompareArgs, rows: &[Row], stops: &[String], table1: &[Table1Ro
     let _ = writeln!(w, "# Backend comparison\n");
     let _ = writeln!(
         w,
-        "Problems of [`docs/math/benchmarks.md`](../math/benchmarks.md) §1–§3, every registered backend and \
-         variant, refined n = 1, 2, 4, … (MMS from 2) until the per-study budget ({} s per backend, variant and \
+        "Problems of [`docs/math/benchmarks.md`](../math/benchmarks.md) §1–§3 and §5, every registered backend and \
+         variant (§5: every method that cuts), refined n = 1, 2, 4, … (MMS and §5 from 2) until the per-study budget ({} s per backend, variant and \
          problem{}) would be exceeded: the next level's time is predicted as the last one's times the last growth \
          factor clamped to [8, 64]. Raw rows: [`compare.csv`](compare.csv) (one per run, appended as each \
          finishes).\n",
@@ -479,29 +491,7 @@ fn report(args: &CompareArgs, rows: &[Row], stops: &[String], table1: &[Table1Ro
                     r.uncertainty,
                     100.0 * r.uncertainty / r.value.abs()
                 );
-                let _ = writeln!(w, "| method | consistent | levels | limit [m] | estimated error [m] | verdict |");
-                let _ = writeln!(w, "|---|---|---|---|---|---|");
-                for l in &r.limits {
-                    let verdict = if r.agreeing.contains(&l.method) {
-                        "makes the reference".to_string()
-                    } else {
-                        match r.different_limit(l) {
-                            Some(away) => format!("**converges to a different limit, {:.1} % away**", 100.0 * away),
-                            None => "agrees within its estimated error".to_string(),
-                        }
-                    };
-                    let _ = writeln!(
-                        w,
-                        "| {} | {} | {}, {} | {:.5} | {:.1e} | {verdict} |",
-                        l.method,
-                        if l.consistent { "yes" } else { "no" },
-                        l.levels.0,
-                        l.levels.1,
-                        l.limit,
-                        l.estimated_error
-                    );
-                }
-                let _ = writeln!(w);
+                limits_table(w, r, "m");
             }
             None => {
                 let _ =
@@ -591,6 +581,8 @@ fn report(args: &CompareArgs, rows: &[Row], stops: &[String], table1: &[Table1Ro
         let _ = writeln!(w);
     }
     let _ = writeln!(w, "![time per phase at each method's finest level](phases.svg)\n");
+    let ran_cut = selection(&args.problems).is_ok_and(|s| s.problems.contains(&Problem::CutCantilever));
+    cut_cantilever_section(w, rows, &header, ran_cut);
 
     let _ = writeln!(w, "## kaufmann2008 Table 1\n");
     let _ = writeln!(
@@ -656,6 +648,248 @@ fn report(args: &CompareArgs, rows: &[Row], stops: &[String], table1: &[Table1Ro
         let _ = writeln!(w, "- {s}");
     }
     md
+}
+
+/// The table of each method's extrapolated limit and how it relates to `reference`.
+fn limits_table(w: &mut String, reference: &TipReference, unit: &str) {
+    let _ = writeln!(
+        w,
+        "| method | consistent | levels | values [{unit}] | limit [{unit}] | estimated error [{unit}] | verdict |"
+    );
+    let _ = writeln!(w, "|---|---|---|---|---|---|---|");
+    for l in &reference.limits {
+        let verdict = if reference.agreeing.contains(&l.method) {
+            "makes the reference".to_string()
+        } else {
+            match reference.different_limit(l) {
+                Some(away) => format!("**converges to a different limit, {:.1} % away**", 100.0 * away),
+                None => "agrees within its estimated error".to_string(),
+            }
+        };
+        let _ = writeln!(
+            w,
+            "| {} | {} | {}, {} | {:.6}, {:.6} | {:.5} | {:.1e} | {verdict} |",
+            l.method,
+            if l.consistent { "yes" } else { "no" },
+            l.levels.0,
+            l.levels.1,
+            l.values.0,
+            l.values.1,
+            l.limit,
+            l.estimated_error
+        );
+    }
+    let _ = writeln!(w);
+}
+
+/// The three references of the cut cantilever: tip, strain energy, crack opening.
+pub fn cut_references(rows: &[Row]) -> [(&'static str, &'static str, Option<TipReference>); 3] {
+    [
+        ("tip_uz_avg", "m", cut_cantilever_reference(rows, |r| r.tip_uz_avg, &method_is_consistent)),
+        ("strain energy", "J", cut_cantilever_reference(rows, |r| r.strain_energy, &method_is_consistent)),
+        ("crack opening", "m", cut_cantilever_reference(rows, |r| r.crack_opening, &method_is_consistent)),
+    ]
+}
+
+/// The "Cut cantilever (§5)" section: references, per-level table, the dynamic cut.
+/// `ran_here`: this invocation ran the cut problems (so the load average describes their timings).
+fn cut_cantilever_section(w: &mut String, rows: &[Row], header: &str, ran_here: bool) {
+    let statics = by_method(rows, Problem::CutCantilever);
+    let dynamic = by_method(rows, Problem::CutDynamic);
+    if statics.is_empty() && dynamic.is_empty() {
+        return;
+    }
+    let _ = writeln!(w, "## Cut cantilever (§5)\n");
+    let _ = writeln!(
+        w,
+        "The static cantilever of §2 (E = 1e6 Pa, ν = 0.3, linear) with a zero-thickness crack: the plane x = 2 \
+         through the whole width, from the top face z = 1 down to z = 0.5, given to every method that cuts as \
+         the same soup of two triangles in rest space (`cleave_testkit::problems::crack::cantilever`, \
+         overhanging the beam by one cell on the open sides) and applied to its uncut box with its own cutting \
+         (`CompareBackend::build_cut_box`): **virtualnode/linear-tet** by `Cuttable::cut` (the generalized \
+         virtual node algorithm; x = 2 is a node plane of its BCC lattice, and so is z = 0.5 for even n); \
+         **voxel/trilinear** separates the cubes across every cube face the soup covers (the conforming \
+         4n × n × n hexahedral grid of §5 whose nodes on {{x = 2, z > 0.5}} are duplicated for the cubes right \
+         of the plane: (n + 1)·n/2 nodes, counted in the tests). Levels start at n = 2 and are even: for odd n \
+         the front z = 0.5 crosses the middle of a row of cube faces, which cubes cannot express. The crack \
+         opening is u_x(2⁺, 0.5, 1) − u_x(2⁻, 0.5, 1), each side evaluated by embedding 1e-4 h from the plane. \
+         Registered methods that cannot cut do not run it.\n"
+    );
+    let references = cut_references(rows);
+    let _ = writeln!(
+        w,
+        "**Reference.** The crack front is a singularity stronger than the clamped edges (λ = 1/2): tip, \
+         energy and opening converge like h¹, so each method's limit is Richardson extrapolation with rate 1 \
+         from its two finest levels, u_lim = u_f + (u_f − u_c)/(2 − 1) = 2u_f − u_c, and the size of that \
+         correction is its estimated error; the reference is then formed by the rule of §2 (only consistent \
+         methods whose limits agree within the sum of their estimated errors, weighted by 1/error²). The two \
+         cutting methods are independent discretizations (trilinear cubes, linear tetrahedra on a BCC \
+         lattice), so when both make a reference it is not either method's own limit.\n"
+    );
+    for (name, unit, reference) in &references {
+        match reference {
+            Some(r) => {
+                let _ = writeln!(
+                    w,
+                    "- **{name} = {:.5} {unit} ± {:.5} {unit}** ({:.2} %), made by {}; spread of their limits: {}.",
+                    r.value,
+                    r.uncertainty,
+                    100.0 * r.uncertainty / r.value.abs(),
+                    r.agreeing.join(", "),
+                    spread(r, unit)
+                );
+            }
+            None => {
+                let _ = writeln!(w, "- {name}: no consistent method has two levels yet.");
+            }
+        }
+    }
+    let _ = writeln!(w);
+    for (name, unit, reference) in &references {
+        if let Some(r) = reference {
+            let _ = writeln!(w, "Limits of {name}:\n");
+            limits_table(w, r, unit);
+        }
+    }
+    let tip_reference = references[0].2.as_ref();
+    if !statics.is_empty() {
+        let _ = writeln!(w, "{header}");
+        if ran_here {
+            let _ = writeln!(w, "{}\n", crate::machine::load_line());
+        } else {
+            let _ = writeln!(w, "These rows are from an earlier invocation than the command above.\n");
+        }
+        let _ = writeln!(
+            w,
+            "| method | n | DOFs | elements | tip_uz_avg [m] | strain energy [J] | crack opening [m] | tip error | rate | setup [s] | assemble [s] | solve [s] | total [s] | reps | peak RSS [MB] |"
+        );
+        let _ = writeln!(w, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+        for (method, g) in &statics {
+            let error = |r: &Row| tip_reference.and_then(|rf| tip_error(r, rf));
+            let rates = observed_rates(g, error);
+            for (i, r) in g.iter().enumerate() {
+                let _ = writeln!(
+                    w,
+                    "| {method} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+                    r.n,
+                    r.dofs,
+                    r.elements,
+                    fixed(r.tip_uz_avg, 6),
+                    sci(r.strain_energy),
+                    fixed(r.crack_opening, 6),
+                    sci(error(r)),
+                    rate(rates[i]),
+                    static_timing_cells(r)
+                );
+            }
+        }
+        let _ = writeln!(w);
+        cost_of_cutting(w, rows, &statics, tip_reference);
+        let _ = writeln!(
+            w,
+            "![cut cantilever: tip error against run time, beside the uncut cantilever](error_vs_time.svg)\n"
+        );
+    }
+    if !dynamic.is_empty() {
+        let _ = writeln!(w, "### Dynamic cut\n");
+        let _ = writeln!(
+            w,
+            "The dynamic beam of §3 (E = 1e8 Pa, ν = 0.3, ρ = 1000 kg/m³, Rayleigh β = 0.01 s, h = 1/60 s, \
+             clamped, released from rest under gravity) cut by the same crack after {CUT_DYNAMIC_CUT_STEP} steps \
+             (t = 1 s) and run to {CUT_DYNAMIC_STEPS} steps (t = 4 s). The cut happens between steps as \
+             `cleave_scene::Simulation` does it: the backend's cut box and its topology change go to \
+             `Integrator::apply_topology_change` (x and v carried by the gather of duplicated nodes, rotations \
+             as warm starts) with the Dirichlet data resolved again on the cut mesh; the harness first checks \
+             that the cut box's rest positions are the running box's gathered. Energies are totals: kinetic + \
+             elastic + gravitational, the last −fᵀu = −fᵀ(x − X₀) from the rest shape with the gravity load f \
+             of the current mesh (the integrator's −fᵀx plus the datum fᵀX₀). *E after − before* must not be \
+             positive beyond rounding (a cut must not add energy; the sums over all nodes round at about 1e-13 \
+             of abs(E)); *max after* is the largest total of any later step over \
+             the energy before the cut. p = Σ m v with the lumped masses. *vs static cut* is the tip at 4 s \
+             against the same method's static cracked deflection on the same mesh scaled by E_static/E_dynamic \
+             = 1e-2 (it must settle within 1 %).\n"
+        );
+        let _ = writeln!(
+            w,
+            "| method | n | DOFs | E before cut [J] | E after − before [J] | relative | max after − before [J] | \
+             abs(p) before [kg m/s] | abs(Δp) [kg m/s] | tip_uz_avg(4 s) [m] | crack opening(4 s) [m] | vs static cut | total [s] |"
+        );
+        let _ = writeln!(w, "|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+        for (method, g) in &dynamic {
+            for r in g {
+                let delta = r.energy_after_cut.zip(r.energy_before_cut).map(|(a, b)| a - b);
+                let relative = delta.zip(r.energy_before_cut).map(|(d, b)| d / b.abs());
+                let max_rise = r.energy_max_after_cut.zip(r.energy_before_cut).map(|(a, b)| a - b);
+                let _ = writeln!(
+                    w,
+                    "| {method} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+                    r.n,
+                    r.dofs,
+                    sci(r.energy_before_cut),
+                    sci(delta),
+                    sci(relative),
+                    sci(max_rise),
+                    sci(r.momentum_before_cut),
+                    sci(r.momentum_change),
+                    fixed(r.tip_uz_avg, 6),
+                    fixed(r.crack_opening, 6),
+                    self_consistency(r, rows).map_or("—".into(), |e| format!("{:+.3} %", 100.0 * e)),
+                    sci(r.seconds_total)
+                );
+            }
+        }
+        let _ = writeln!(w);
+    }
+}
+
+/// What cutting costs in accuracy, per method: at its finest level with both a cut and an uncut
+/// cantilever row, the two tip errors (each against its own problem's reference) and their
+/// ratio, and the observed rates into that level.
+fn cost_of_cutting(w: &mut String, rows: &[Row], statics: &[(String, Vec<&Row>)], cut: Option<&TipReference>) {
+    let (Some(cut), Some(uncut)) = (cut, reference_of(rows)) else { return };
+    let uncut_rows = by_method(rows, Problem::Cantilever);
+    let mut lines = Vec::new();
+    for (method, g) in statics {
+        let Some(plain) = uncut_rows.iter().find(|(m, _)| m == method).map(|(_, g)| g) else { continue };
+        let Some((c, u)) = g.iter().rev().find_map(|c| plain.iter().find(|u| u.n == c.n).map(|u| (*c, *u))) else {
+            continue;
+        };
+        let (Some(ec), Some(eu)) = (tip_error(c, cut), tip_error(u, &uncut)) else { continue };
+        let rate_into = |g: &[&Row], rf: &TipReference| {
+            let upto: Vec<&Row> = g.iter().copied().filter(|r| r.n <= c.n).collect();
+            observed_rates(&upto, |r| tip_error(r, rf)).last().copied().flatten()
+        };
+        lines.push(format!(
+            "- {method}, n = {}: tip error {ec:.2e} cut, {eu:.2e} uncut ({:.1}×); observed rate into n = {}: {} cut, {} uncut.",
+            c.n,
+            ec / eu,
+            c.n,
+            rate(rate_into(g, cut)),
+            rate(rate_into(plain, &uncut))
+        ));
+    }
+    if !lines.is_empty() {
+        let _ = writeln!(
+            w,
+            "**What the cut costs in accuracy** (same method, same n, each problem against its own reference):\n"
+        );
+        for l in lines {
+            let _ = writeln!(w, "{l}");
+        }
+        let _ = writeln!(w);
+    }
+}
+
+/// The largest distance between the limits of a reference's members, in absolute and relative
+/// terms.
+fn spread(reference: &TipReference, unit: &str) -> String {
+    let members: Vec<f64> =
+        reference.limits.iter().filter(|l| reference.agreeing.contains(&l.method)).map(|l| l.limit).collect();
+    let (lo, hi) = members.iter().fold((f64::MAX, f64::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    if members.len() < 2 {
+        return "one method only".into();
+    }
+    format!("{:.5} {unit} ({:.2} %)", hi - lo, 100.0 * (hi - lo) / reference.value.abs())
 }
 
 /// The timing tail shared by the static tables: setup, assemble, solve, total [s], reps, peak RSS.
@@ -724,5 +958,8 @@ mod tests {
         assert_eq!(all.problems, Problem::ALL.to_vec());
         assert!(all.cutting && all.table1);
         assert!(selection(&["cuts".into()]).is_err());
+        let cut = selection(&["cut-cantilever".into()]).unwrap();
+        assert_eq!(cut.problems, vec![Problem::CutCantilever, Problem::CutDynamic]);
+        assert!(!cut.cutting && !cut.table1);
     }
 }

@@ -11,6 +11,27 @@ pub fn machine_line() -> String {
     format!("Machine: {cores} cores (`std::thread::available_parallelism`), CPU: {model} (lscpu).")
 }
 
+/// The load averages of /proc/loadavg against the core count, for reports whose timings may have
+/// shared the cores with other processes; empty where /proc is absent.
+pub fn load_line() -> String {
+    let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
+    let Some(loads) = fs::read_to_string("/proc/loadavg")
+        .ok()
+        .map(|text| text.split_whitespace().take(3).filter_map(|v| v.parse::<f64>().ok()).collect::<Vec<f64>>())
+    else {
+        return String::new();
+    };
+    let [one, five, fifteen] = loads[..] else { return String::new() };
+    let shared = if five > cores as f64 {
+        "above the core count: other processes shared the cores, so these timings are inflated and noisy"
+    } else {
+        "within the core count"
+    };
+    format!(
+        "Load average when this section was written: {one:.2} (1 min), {five:.2} (5 min), {fifteen:.2} (15 min) on {cores} cores, {shared}."
+    )
+}
+
 fn cpu_model() -> Option<String> {
     let from_lscpu = Command::new("lscpu").output().ok().and_then(|out| {
         String::from_utf8_lossy(&out.stdout)

@@ -85,7 +85,9 @@ enum Command {
         /// Small levels only (CI); writes to target/ci unless --out is given.
         #[arg(long)]
         quick: bool,
-        /// What to run: any of mms, cantilever, dynamic (refinement studies), table1
+        /// What to run: any of mms, cantilever, dynamic, cut-cantilever (refinement studies; the
+        /// last is benchmarks.md §5 static and cut at t = 1 s in the dynamic beam, on every backend
+        /// that cuts), table1
         /// (kaufmann2008 Table 1 timings), cutting (the timeline of scenes/bunny_slice.ron on
         /// every selected backend that can cut), or all. What is not selected is kept from the
         /// previous compare.csv, table1.csv, cutting.csv and compare.md.

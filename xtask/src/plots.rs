@@ -2,7 +2,7 @@
 //! DOFs, and per-phase time bars, each written as SVG and PNG. Text is rendered with the bundled
 //! DejaVu Sans (`xtask/assets`, licence beside it) through ab_glyph, so no system fonts are read.
 
-use crate::compare::{reference_of, tip_error};
+use crate::compare::{cut_references, reference_of, tip_error};
 use anyhow::{Context, Result, anyhow};
 use cleave_testkit::compare::{Problem, Row};
 use plotters::coord::Shift;
@@ -34,17 +34,20 @@ struct ErrorPanel {
 
 fn error_panels(rows: &[Row]) -> Vec<ErrorPanel> {
     let reference = reference_of(rows);
+    let [(_, _, cut_reference), ..] = cut_references(rows);
     let mut panels = Vec::new();
-    let specs: [(Problem, &str, &str); 3] = [
+    let specs: [(Problem, &str, &str); 4] = [
         (Problem::MmsSin111, "MMS sin111: L2 error", "relative L2 error [-]"),
         (Problem::MmsCos123, "MMS cos123: L2 error", "relative L2 error [-]"),
         (Problem::Cantilever, "cantilever: tip error vs extrapolated", "relative tip_uz_avg error [-]"),
+        (Problem::CutCantilever, "cut cantilever: tip error vs extrapolated", "relative tip_uz_avg error [-]"),
     ];
     for (problem, title, y_label) in specs {
         let mut series: Vec<Series> = Vec::new();
         for r in rows.iter().filter(|r| r.problem == problem.key()) {
             let error = match problem {
                 Problem::Cantilever => reference.as_ref().and_then(|rf| tip_error(r, rf)),
+                Problem::CutCantilever => cut_reference.as_ref().and_then(|rf| tip_error(r, rf)),
                 _ => r.l2_rel_error,
             };
             let (Some(e), Some(t)) = (error, r.seconds_total) else { continue };
@@ -80,6 +83,13 @@ fn draw_error_panels<DB: DrawingBackend>(
     let e = |e: DrawingAreaErrorKind<DB::ErrorType>| format!("{e:?}");
     root.fill(&WHITE).map_err(e)?;
     let areas = root.split_evenly((1, panels.len().max(1)));
+    // One colour per method across all panels (the cut cantilever's methods keep their colours).
+    let mut methods: Vec<&str> = Vec::new();
+    for s in panels.iter().flat_map(|p| &p.series) {
+        if !methods.contains(&s.method.as_str()) {
+            methods.push(&s.method);
+        }
+    }
     for (panel, area) in panels.iter().zip(&areas) {
         let x = |p: &(f64, f64, f64)| if by_dofs { p.1 } else { p.0 };
         let (x0, x1) = log_bounds(panel.series.iter().flat_map(|s| s.points.iter().map(x)));
@@ -101,8 +111,8 @@ fn draw_error_panels<DB: DrawingBackend>(
             .y_label_formatter(&|v| format!("{v:.0e}"))
             .draw()
             .map_err(e)?;
-        for (i, s) in panel.series.iter().enumerate() {
-            let color = Palette99::pick(i).to_rgba();
+        for s in &panel.series {
+            let color = Palette99::pick(methods.iter().position(|m| *m == s.method).unwrap_or(0)).to_rgba();
             let points: Vec<(f64, f64)> = s.points.iter().map(|p| (x(p), p.2)).collect();
             chart
                 .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))

@@ -13,7 +13,7 @@ pub use backend::{
 };
 pub use dg::DgBackend;
 pub use virtualnode::{SLIVER_OFFSET, VirtualNodeBackend, sliver_beam};
-pub use voxel::VoxelBackend;
+pub use voxel::{VoxelBackend, covered_faces};
 
 use cleave_testkit::compare::CompareBackend;
 
@@ -76,6 +76,19 @@ impl CompareBackend for CompareOf {
         dirichlet: &cleave_testkit::compare::DirichletSpec,
     ) -> Result<Option<cleave_testkit::compare::BuiltProblem>, cleave_testkit::compare::BuildError> {
         self.0.compare().build_extreme(variant, case, material, grid, dirichlet)
+    }
+    fn cuts(&self, variant: &str) -> bool {
+        self.0.compare().cuts(variant)
+    }
+    fn build_cut_box(
+        &self,
+        variant: &str,
+        material: &cleave_core::Material,
+        grid: &cleave_testkit::compare::BoxGrid,
+        dirichlet: &cleave_testkit::compare::DirichletSpec,
+        surface: &cleave_core::CutSurface,
+    ) -> Result<cleave_testkit::compare::CutProblem, cleave_testkit::compare::CutError> {
+        self.0.compare().build_cut_box(variant, material, grid, dirichlet, surface)
     }
     fn extreme_start(
         &self,

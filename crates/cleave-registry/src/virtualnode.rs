@@ -9,10 +9,10 @@ use crate::backend::{
     Backend, BackendError, BuiltSolid, Capabilities, RestSurface, Shape, SolidRequest, cell_size_for, one_size,
     parse_settings,
 };
-use cleave_core::{Discretization, Material, Point3, Real};
+use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real};
 use cleave_testkit::compare::{
-    BoxGrid, BuildError, BuiltProblem, CompareBackend, DirichletSpec, ExtremeCase, NotApplicable, corner_pushed_in,
-    stretch_start,
+    BoxGrid, BuildError, BuiltProblem, CompareBackend, CutError, CutProblem, DirichletSpec, ExtremeCase, NotApplicable,
+    corner_pushed_in, stretch_start,
 };
 use cleave_virtualnode::arrangement::Cover;
 use cleave_virtualnode::{VirtualNodeMesh, box_surface};
@@ -103,6 +103,38 @@ impl CompareBackend for VirtualNodeBackend {
             elements,
             search_seconds: 0.0,
         })
+    }
+
+    fn cuts(&self, variant: &str) -> bool {
+        variant == "linear-tet"
+    }
+
+    /// The carved box cut by `surface` with `Cuttable::cut` (what scenes call), the Dirichlet data
+    /// resolved on the cut mesh by [`carved_dirichlet`].
+    fn build_cut_box(
+        &self,
+        variant: &str,
+        material: &Material,
+        grid: &BoxGrid,
+        dirichlet: &DirichletSpec,
+        surface: &CutSurface,
+    ) -> Result<CutProblem, CutError> {
+        if variant != "linear-tet" {
+            return Err(CutError::Build(format!("virtualnode has no variant {variant:?} (only \"linear-tet\")")));
+        }
+        let mut mesh = VirtualNodeMesh::from_box(grid.origin, grid.max_corner(), grid.h, *material)
+            .map_err(|e| CutError::Build(e.to_string()))?;
+        let change = mesh.cut(surface).map_err(|e| CutError::Build(e.to_string()))?;
+        let elements = mesh.num_duplicates();
+        let prescribed = carved_dirichlet(&mesh, dirichlet);
+        let built = BuiltProblem {
+            discretization: Box::new(mesh),
+            prescribed,
+            dirichlet_load: Vec::new(),
+            elements,
+            search_seconds: 0.0,
+        };
+        Ok(CutProblem { built, change })
     }
 
     /// Uncut lattice tetrahedra are congruent, so the sliver case cuts the beam first

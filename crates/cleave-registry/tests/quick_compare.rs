@@ -98,7 +98,20 @@ fn quick_mms_and_cantilever_rows_converge_and_parse() {
 fn stability_cells_pass_or_name_their_failure() {
     let voxel = backend("voxel").unwrap();
     let all = cells();
-    assert_eq!(all.len(), 4 * 5 * 3 + 3, "the §4 grid plus three extreme cases");
+    assert_eq!(all.len(), 4 * 5 * 3 + 3 + 2 * 2 * 2, "the §4 grid, three extreme cases, 2 × (2 E × 2 ν) cut beams");
+    // The cut beam: cubes separate across the faces of the node plane, and cannot cut 1e-6 h off it.
+    for (case, passes) in [("cut-on-node-plane", true), ("cut-near-node-plane", false)] {
+        let cell = all.iter().find(|c| c.case() == case && c.youngs_modulus == 1e6 && c.poisson_ratio == 0.3).unwrap();
+        let result = run_cell(voxel.as_ref(), "trilinear", *cell, 30);
+        if passes {
+            assert_eq!(result.verdict, Verdict::Pass, "{case}");
+        } else {
+            assert!(
+                matches!(result.verdict, Verdict::NotApplicable(ref why) if why.contains("no cube face")),
+                "{case}"
+            );
+        }
+    }
     let moderate = all
         .iter()
         .find(|c| {

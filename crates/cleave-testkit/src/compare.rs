@@ -1,11 +1,11 @@
 //! The backend-neutral half of `cargo xtask compare`: how a backend registers
-//! ([`CompareBackend`]), the benchmark problems of `docs/math/benchmarks.md` §1–§3 run through the
-//! trait ([`run_problem`]), the refinement study under a time budget ([`run_study`]), CSV rows,
-//! observed rates and the Richardson reference of the cantilever. No file or terminal I/O: xtask
-//! writes what these functions return.
+//! ([`CompareBackend`]), the benchmark problems of `docs/math/benchmarks.md` §1–§3 and §5 run
+//! through the trait ([`run_problem`]), the refinement study under a time budget ([`run_study`]),
+//! CSV rows, observed rates and the Richardson references of the cantilever and of the cut
+//! cantilever. No file or terminal I/O: xtask writes what these functions return.
 
-use crate::problems::{Manufactured, cantilever, field_errors, on_unit_cube_boundary};
-use cleave_core::{Discretization, Material, Point3, Real, Vector3};
+use crate::problems::{Manufactured, cantilever, crack, field_errors, on_unit_cube_boundary};
+use cleave_core::{CutSurface, Discretization, Material, Point3, Real, TopologyChange, Vector3};
 use cleave_integrator::{Constraints, Integrator, Settings, Solver, StepErrorKind, solve_static};
 use std::fmt;
 use std::time::Instant;
@@ -145,6 +145,41 @@ pub fn stretch_start(built: &BuiltProblem, grid: &BoxGrid) -> Vec<Real> {
     x
 }
 
+/// A box built and then cut by a backend's own cutting ([`CompareBackend::build_cut_box`]).
+pub struct CutProblem {
+    /// The cut discretization with its Dirichlet data resolved again on it.
+    pub built: BuiltProblem,
+    /// The change from the uncut box of [`CompareBackend::build_box`] (same arguments) to it:
+    /// what a run that cuts between steps hands the integrator.
+    pub change: TopologyChange,
+}
+
+/// Why a backend did not build a cut box.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CutError {
+    /// The backend cannot make this cut (no cutting at all, or a cut off its cube faces).
+    CannotCut(String),
+    /// Building or cutting failed.
+    Build(String),
+}
+
+impl fmt::Display for CutError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CutError::CannotCut(why) => write!(f, "cannot cut: {why}"),
+            CutError::Build(why) => f.write_str(why),
+        }
+    }
+}
+
+impl std::error::Error for CutError {}
+
+impl From<CutError> for RunError {
+    fn from(e: CutError) -> Self {
+        RunError::Build(BuildError(e.to_string()))
+    }
+}
+
 /// One registration of a backend with the comparison harness. Adding a backend to `cargo xtask
 /// compare` and `cargo xtask stability` is one `impl` of this trait plus one line in
 /// `cleave_registry::backends()`.
@@ -194,6 +229,28 @@ pub trait CompareBackend: Send + Sync {
         Ok(None)
     }
 
+    /// Whether `variant` can run the cut problems (the cut cantilever, the dynamic cut, the cut
+    /// cells of the stability grid) through [`CompareBackend::build_cut_box`].
+    fn cuts(&self, _variant: &str) -> bool {
+        false
+    }
+
+    /// The box of [`build_box`] cut by `surface` (rest space) with the backend's own cutting, its
+    /// Dirichlet data resolved again on the cut discretization, and the topology change from the
+    /// uncut box. The default cannot cut.
+    ///
+    /// [`build_box`]: CompareBackend::build_box
+    fn build_cut_box(
+        &self,
+        _variant: &str,
+        _material: &Material,
+        _grid: &BoxGrid,
+        _dirichlet: &DirichletSpec,
+        _surface: &CutSurface,
+    ) -> Result<CutProblem, CutError> {
+        Err(CutError::CannotCut(format!("{} has no cutting", self.name())))
+    }
+
     /// The start positions of an extreme case for a problem built from `grid` (whose x = min
     /// face is clamped). The default handles the stretch (the linear map on every coefficient of
     /// the rest DOFs plus `add_translation`, exact for every backend) and declines the others.
@@ -222,11 +279,22 @@ pub enum Problem {
     Cantilever,
     /// §3 dynamic beam.
     Dynamic,
+    /// §5 static cantilever cut by the half-plane crack (backends that cut only).
+    CutCantilever,
+    /// §3's dynamic beam cut by §5's crack at t = 1 s, run to t = 4 s (backends that cut only).
+    CutDynamic,
 }
 
 impl Problem {
     /// Every problem, in report order.
-    pub const ALL: [Problem; 4] = [Problem::MmsSin111, Problem::MmsCos123, Problem::Cantilever, Problem::Dynamic];
+    pub const ALL: [Problem; 6] = [
+        Problem::MmsSin111,
+        Problem::MmsCos123,
+        Problem::Cantilever,
+        Problem::Dynamic,
+        Problem::CutCantilever,
+        Problem::CutDynamic,
+    ];
 
     /// Name in the CSV `problem` column.
     pub fn key(self) -> &'static str {
@@ -235,6 +303,8 @@ impl Problem {
             Problem::MmsCos123 => "mms-cos123",
             Problem::Cantilever => "cantilever",
             Problem::Dynamic => "dynamic",
+            Problem::CutCantilever => "cut-cantilever",
+            Problem::CutDynamic => "cut-dynamic",
         }
     }
 
@@ -243,10 +313,16 @@ impl Problem {
         Problem::ALL.into_iter().find(|p| p.key() == key)
     }
 
-    /// Refinement levels n (h = 1/n): MMS from 2, the beams from 1.
+    /// Whether only backends that cut run it.
+    pub fn needs_cutting(self) -> bool {
+        matches!(self, Problem::CutCantilever | Problem::CutDynamic)
+    }
+
+    /// Refinement levels n (h = 1/n): MMS from 2, the beams from 1, the cut beams from 2 (their
+    /// crack front z = 0.5 lies on cube faces and lattice node planes for even n only).
     pub fn sizes(self) -> Vec<usize> {
         let first = match self {
-            Problem::MmsSin111 | Problem::MmsCos123 => 2,
+            Problem::MmsSin111 | Problem::MmsCos123 | Problem::CutCantilever | Problem::CutDynamic => 2,
             Problem::Cantilever | Problem::Dynamic => 1,
         };
         (0..8).map(|k| first << k).collect()
@@ -256,7 +332,7 @@ impl Problem {
     pub fn grid(self, n: usize) -> BoxGrid {
         let dims = match self {
             Problem::MmsSin111 | Problem::MmsCos123 => [n, n, n],
-            Problem::Cantilever | Problem::Dynamic => [4 * n, n, n],
+            Problem::Cantilever | Problem::Dynamic | Problem::CutCantilever | Problem::CutDynamic => [4 * n, n, n],
         };
         BoxGrid { origin: Point3::origin(), h: 1.0 / n as Real, dims }
     }
@@ -269,16 +345,25 @@ pub const DYNAMIC_YOUNGS_MODULUS: Real = 1e8;
 /// scaled by the ratio of Young's moduli (the static problem is linear): `(dyn − s·stat) / (s·stat)`
 /// with `s = E_static / E_dynamic`. A run that has settled lands on its own static answer; a
 /// defect in the corotated forces (a lever arm to the origin, a ghost force) shows here.
+/// The dynamic beam is checked against the static cantilever, the cut dynamic beam against the
+/// cut cantilever.
 pub fn self_consistency(dynamic: &Row, rows: &[Row]) -> Option<Real> {
+    let static_problem =
+        if dynamic.problem == Problem::CutDynamic.key() { Problem::CutCantilever } else { Problem::Cantilever };
     let statics = rows
         .iter()
-        .find(|r| r.problem == Problem::Cantilever.key() && r.method() == dynamic.method() && r.n == dynamic.n)?;
+        .find(|r| r.problem == static_problem.key() && r.method() == dynamic.method() && r.n == dynamic.n)?;
     let scaled = statics.tip_uz_avg? * crate::problems::cantilever::YOUNGS_MODULUS / DYNAMIC_YOUNGS_MODULUS;
     Some((dynamic.tip_uz_avg? - scaled) / scaled)
 }
 
 /// Steps and step size of the dynamic beam (benchmarks.md §3).
 pub const DYNAMIC_STEPS: usize = 120;
+/// Steps of the cut dynamic beam: cut after [`CUT_DYNAMIC_CUT_STEP`] steps (t = 1 s), run to
+/// t = 4 s.
+pub const CUT_DYNAMIC_STEPS: usize = 240;
+/// Steps before the cut of the cut dynamic beam.
+pub const CUT_DYNAMIC_CUT_STEP: usize = 60;
 /// Time step of the dynamic beam [s].
 pub const DYNAMIC_TIME_STEP: Real = 1.0 / 60.0;
 
@@ -326,10 +411,26 @@ pub struct Row {
     pub steps: Option<usize>,
     /// Rotation extraction over all steps (dynamic) [s].
     pub seconds_rotations: Option<Real>,
+    /// Crack opening u_x(2⁺, 0.5, 1) − u_x(2⁻, 0.5, 1) [m] (cut cantilever).
+    pub crack_opening: Option<Real>,
+    /// Total energy (kinetic + elastic + gravitational) just before the cut [J] (cut dynamic).
+    pub energy_before_cut: Option<Real>,
+    /// Total energy just after the cut, same state carried across [J] (cut dynamic).
+    pub energy_after_cut: Option<Real>,
+    /// Largest total energy of any step after the cut [J] (cut dynamic).
+    pub energy_max_after_cut: Option<Real>,
+    /// |p| just before the cut, p = Σ m v [kg m/s] (cut dynamic).
+    pub momentum_before_cut: Option<Real>,
+    /// |p_after − p_before| across the cut [kg m/s] (cut dynamic).
+    pub momentum_change: Option<Real>,
 }
 
 /// The CSV header, in column order.
-pub const CSV_HEADER: &str = "problem,backend,variant,n,dofs,elements,nnz,l2_rel_error,h1_rel_error,tip_uz_avg,tip_uz_point,strain_energy,seconds_setup,seconds_assemble,seconds_solve,seconds_total,peak_rss_mb,repetitions,steps,seconds_rotations";
+pub const CSV_HEADER: &str = "problem,backend,variant,n,dofs,elements,nnz,l2_rel_error,h1_rel_error,tip_uz_avg,tip_uz_point,strain_energy,seconds_setup,seconds_assemble,seconds_solve,seconds_total,peak_rss_mb,repetitions,steps,seconds_rotations,crack_opening,energy_before_cut,energy_after_cut,energy_max_after_cut,momentum_before_cut,momentum_change";
+
+/// Columns of files written before the cut problems existed: [`CSV_HEADER`]'s first 20. Such
+/// files are still read (the cut columns empty), so their rows are kept.
+const CSV_COLUMNS_BEFORE_CUTS: usize = 20;
 
 fn cell<T: fmt::Display>(value: Option<T>) -> String {
     value.map_or_else(String::new, |v| v.to_string())
@@ -368,14 +469,23 @@ impl Row {
             self.repetitions.to_string(),
             cell(self.steps),
             real_cell(self.seconds_rotations),
+            real_cell(self.crack_opening),
+            real_cell(self.energy_before_cut),
+            real_cell(self.energy_after_cut),
+            real_cell(self.energy_max_after_cut),
+            real_cell(self.momentum_before_cut),
+            real_cell(self.momentum_change),
         ]
         .join(",")
     }
 
     /// Parses a line written by [`Row::to_csv`]; the error names the column.
     pub fn from_csv(line: &str) -> Result<Row, String> {
-        let f: Vec<&str> = line.trim_end().split(',').collect();
+        let mut f: Vec<&str> = line.trim_end().split(',').collect();
         let columns = CSV_HEADER.split(',').count();
+        if f.len() == CSV_COLUMNS_BEFORE_CUTS {
+            f.resize(columns, "");
+        }
         if f.len() != columns {
             return Err(format!("expected {columns} columns, found {}: {line}", f.len()));
         }
@@ -410,6 +520,12 @@ impl Row {
             repetitions: int(17)?,
             steps: opt_int(18)?,
             seconds_rotations: opt_real(19)?,
+            crack_opening: opt_real(20)?,
+            energy_before_cut: opt_real(21)?,
+            energy_after_cut: opt_real(22)?,
+            energy_max_after_cut: opt_real(23)?,
+            momentum_before_cut: opt_real(24)?,
+            momentum_change: opt_real(25)?,
         })
     }
 }
@@ -417,8 +533,9 @@ impl Row {
 /// Parses a whole CSV written by the harness (header checked).
 pub fn parse_csv(text: &str) -> Result<Vec<Row>, String> {
     let mut lines = text.lines();
+    let before_cuts = CSV_HEADER.split(',').take(CSV_COLUMNS_BEFORE_CUTS).collect::<Vec<_>>().join(",");
     match lines.next() {
-        Some(header) if header.trim_end() == CSV_HEADER => {}
+        Some(header) if header.trim_end() == CSV_HEADER || header.trim_end() == before_cuts => {}
         other => return Err(format!("header {other:?} is not {CSV_HEADER:?}")),
     }
     lines.filter(|l| !l.trim().is_empty()).map(Row::from_csv).collect()
@@ -505,11 +622,15 @@ pub fn run_problem(backend: &dyn CompareBackend, variant: &str, problem: Problem
             row.l2_rel_error = Some(errors.l2_relative);
             row.h1_rel_error = Some(errors.h1_relative);
         }
-        Problem::Cantilever => {
+        Problem::Cantilever | Problem::CutCantilever => {
             let material = cantilever::material(0.3);
             let dirichlet = DirichletSpec { region: &clamped_face, value: &|_| Vector3::zeros() };
             let clock = Instant::now();
-            let built = backend.build_box(variant, &material, &grid, &dirichlet)?;
+            let built = if problem == Problem::CutCantilever {
+                backend.build_cut_box(variant, &material, &grid, &dirichlet, &crack::cantilever(grid.h))?.built
+            } else {
+                backend.build_box(variant, &material, &grid, &dirichlet)?
+            };
             let d = built.discretization.as_ref();
             let mut load = vec![0.0; 3 * d.num_nodes()];
             let f = cantilever::force_density(&material);
@@ -522,49 +643,123 @@ pub fn run_problem(backend: &dyn CompareBackend, variant: &str, problem: Problem
             fill_static(&mut row, &built, &load, &solution, seconds_build);
             row.tip_uz_avg = Some(average);
             row.tip_uz_point = Some(point);
-        }
-        Problem::Dynamic => {
-            let material = Material::new(DYNAMIC_YOUNGS_MODULUS, 0.3, 1000.0)
-                .and_then(|m| m.with_damping(0.0, 0.01))
-                .expect("benchmark material is valid");
-            let dirichlet = DirichletSpec { region: &clamped_face, value: &|_| Vector3::zeros() };
-            let clock = Instant::now();
-            let built = backend.build_box(variant, &material, &grid, &dirichlet)?;
-            let d = built.discretization.as_ref();
-            let mut settings = Settings::new(DYNAMIC_TIME_STEP);
-            settings.rayleigh_beta = material.rayleigh_beta;
-            settings.solver = backend.dynamic_solver(variant);
-            let constraints = Constraints {
-                pinned_dofs: built.prescribed.iter().map(|&(dof, _)| dof).collect(),
-                extra_load: built.dirichlet_load.clone(),
-                ..Default::default()
-            };
-            let mut integrator =
-                Integrator::new(d, settings, constraints).map_err(|e| RunError::Solve(e.to_string()))?;
-            row.seconds_setup = Some(clock.elapsed().as_secs_f64());
-            let (mut rotations, mut assembly, mut solve) = (0.0, 0.0, 0.0);
-            for _ in 0..DYNAMIC_STEPS {
-                let report = integrator.step(d).map_err(|e| RunError::Solve(e.to_string()))?;
-                rotations += report.seconds.rotations;
-                assembly += report.seconds.assembly;
-                solve += report.seconds.solve;
+            if problem == Problem::CutCantilever {
+                row.crack_opening = Some(crack_opening(d, &solution.displacement, grid.h)?);
             }
-            row.seconds_total = Some(clock.elapsed().as_secs_f64());
-            let displacement: Vec<Real> =
-                integrator.positions().iter().zip(d.rest_dofs()).map(|(x, x0)| x - x0).collect();
-            let (average, point) = tip_values(d, &displacement, n)?;
-            row.dofs = 3 * d.num_nodes();
-            row.elements = built.elements;
-            row.nnz = integrator.matrix_stats().map(|(nnz, _)| nnz);
-            row.tip_uz_avg = Some(average);
-            row.tip_uz_point = Some(point);
-            row.seconds_assemble = Some(assembly);
-            row.seconds_solve = Some(solve);
-            row.seconds_rotations = Some(rotations);
-            row.steps = Some(DYNAMIC_STEPS);
         }
+        Problem::Dynamic | Problem::CutDynamic => run_dynamic(backend, variant, &grid, &mut row)?,
     }
     Ok(row)
+}
+
+/// u_x(2⁺, 0.5, 1) − u_x(2⁻, 0.5, 1) by embedding ([`crack::opening_points`]).
+fn crack_opening(d: &dyn Discretization, displacement: &[Real], h: Real) -> Result<Real, RunError> {
+    let embedding =
+        d.embed(&crack::opening_points(h)).map_err(|e| RunError::Solve(format!("embedding the crack mouth: {e}")))?;
+    Ok(embedding.point(displacement, 0).x - embedding.point(displacement, 1).x)
+}
+
+/// Σ m v per component (lumped masses).
+fn momentum(d: &dyn Discretization, v: &[Real]) -> Vector3<Real> {
+    let mut p = Vector3::zeros();
+    for (m, v) in d.mass().diagonal().chunks_exact(3).zip(v.chunks_exact(3)) {
+        for a in 0..3 {
+            p[a] += m[a] * v[a];
+        }
+    }
+    p
+}
+
+/// `fᵀX₀` for the gravity load `f` of `d`: added to the integrator's gravitational energy
+/// `−fᵀx`, it measures that energy from the rest shape, `−fᵀu`, so the total is not dominated by
+/// where the world origin is.
+fn gravity_datum(d: &dyn Discretization, gravity: &Vector3<Real>) -> Real {
+    let mut f = vec![0.0; 3 * d.num_nodes()];
+    d.add_gravity_load(gravity, &mut f);
+    f.iter().zip(d.rest_dofs()).map(|(f, x)| f * x).sum()
+}
+
+/// The integrator's constraints for a built problem: its strong pins and weak Dirichlet load.
+fn dirichlet_constraints(built: &BuiltProblem) -> Constraints {
+    Constraints {
+        pinned_dofs: built.prescribed.iter().map(|&(dof, _)| dof).collect(),
+        extra_load: built.dirichlet_load.clone(),
+        ..Default::default()
+    }
+}
+
+/// The dynamic beam (benchmarks.md §3) of `row.problem`: [`DYNAMIC_STEPS`] steps uncut, or
+/// (cut dynamic) [`CUT_DYNAMIC_STEPS`] steps cut by §5's crack after [`CUT_DYNAMIC_CUT_STEP`],
+/// the way `cleave_scene::Simulation` cuts between steps: the backend's cut box and topology
+/// change handed to `Integrator::apply_topology_change` with the Dirichlet data resolved again.
+fn run_dynamic(backend: &dyn CompareBackend, variant: &str, grid: &BoxGrid, row: &mut Row) -> Result<(), RunError> {
+    let cut = row.problem == Problem::CutDynamic.key();
+    let material = Material::new(DYNAMIC_YOUNGS_MODULUS, 0.3, 1000.0)
+        .and_then(|m| m.with_damping(0.0, 0.01))
+        .expect("benchmark material is valid");
+    let dirichlet = DirichletSpec { region: &clamped_face, value: &|_| Vector3::zeros() };
+    let clock = Instant::now();
+    let mut built = backend.build_box(variant, &material, grid, &dirichlet)?;
+    let mut settings = Settings::new(DYNAMIC_TIME_STEP);
+    settings.rayleigh_beta = material.rayleigh_beta;
+    settings.solver = backend.dynamic_solver(variant);
+    let mut integrator = Integrator::new(built.discretization.as_ref(), settings, dirichlet_constraints(&built))
+        .map_err(|e| RunError::Solve(e.to_string()))?;
+    row.seconds_setup = Some(clock.elapsed().as_secs_f64());
+    let (mut rotations, mut assembly, mut solve) = (0.0, 0.0, 0.0);
+    let steps = if cut { CUT_DYNAMIC_STEPS } else { DYNAMIC_STEPS };
+    let mut datum = 0.0;
+    for step in 0..steps {
+        if cut && step == CUT_DYNAMIC_CUT_STEP {
+            let gravity = integrator.settings().gravity;
+            let before = integrator.energies(built.discretization.as_ref()).total_energy()
+                + gravity_datum(built.discretization.as_ref(), &gravity);
+            let p_before = momentum(built.discretization.as_ref(), integrator.velocities());
+            let cut_box = backend.build_cut_box(variant, &material, grid, &dirichlet, &crack::cantilever(grid.h))?;
+            // The cut box must be the running box cut: every new node at its source's place.
+            let rest = cut_box.change.remap.apply(built.discretization.rest_dofs());
+            if rest != cut_box.built.discretization.rest_dofs() {
+                return Err(RunError::Solve("the cut box is not the running box cut (rest positions differ)".into()));
+            }
+            let constraints = dirichlet_constraints(&cut_box.built);
+            integrator
+                .apply_topology_change(cut_box.built.discretization.as_ref(), &cut_box.change, constraints)
+                .map_err(|e| RunError::Solve(e.to_string()))?;
+            built = cut_box.built;
+            let d = built.discretization.as_ref();
+            datum = gravity_datum(d, &gravity);
+            let after = integrator.energies(d).total_energy() + datum;
+            row.energy_before_cut = Some(before);
+            row.energy_after_cut = Some(after);
+            row.energy_max_after_cut = Some(after);
+            row.momentum_before_cut = Some(p_before.norm());
+            row.momentum_change = Some((momentum(d, integrator.velocities()) - p_before).norm());
+        }
+        let report = integrator.step(built.discretization.as_ref()).map_err(|e| RunError::Solve(e.to_string()))?;
+        rotations += report.seconds.rotations;
+        assembly += report.seconds.assembly;
+        solve += report.seconds.solve;
+        if let Some(max) = row.energy_max_after_cut.as_mut() {
+            *max = max.max(report.total_energy() + datum);
+        }
+    }
+    row.seconds_total = Some(clock.elapsed().as_secs_f64());
+    let d = built.discretization.as_ref();
+    let displacement: Vec<Real> = integrator.positions().iter().zip(d.rest_dofs()).map(|(x, x0)| x - x0).collect();
+    let (average, point) = tip_values(d, &displacement, row.n)?;
+    row.dofs = 3 * d.num_nodes();
+    row.elements = built.elements;
+    row.nnz = integrator.matrix_stats().map(|(nnz, _)| nnz);
+    row.tip_uz_avg = Some(average);
+    row.tip_uz_point = Some(point);
+    if cut {
+        row.crack_opening = Some(crack_opening(d, &displacement, grid.h)?);
+    }
+    row.seconds_assemble = Some(assembly);
+    row.seconds_solve = Some(solve);
+    row.seconds_rotations = Some(rotations);
+    row.steps = Some(steps);
+    Ok(())
 }
 
 fn fill_static(
@@ -639,8 +834,8 @@ impl StudyPlan {
     pub fn quick(problem: Problem) -> Self {
         let max_n = match problem {
             Problem::MmsSin111 | Problem::MmsCos123 => 8,
-            Problem::Cantilever => 4,
-            Problem::Dynamic => 2,
+            Problem::Cantilever | Problem::CutCantilever => 4,
+            Problem::Dynamic | Problem::CutDynamic => 2,
         };
         Self { budget_seconds: 30.0, max_n, max_dofs: 100_000, single_run_seconds: 3.0 }
     }
@@ -750,7 +945,11 @@ pub fn richardson(coarse: Real, fine: Real, ratio: Real, rate: Real) -> Real {
     fine + (fine - coarse) / (ratio.powf(rate) - 1.0)
 }
 
-/// One method's extrapolated cantilever limit.
+/// The crack front's singularity (λ = 1/2, benchmarks.md §5): the cut cantilever's tip,
+/// energy and opening converge like h¹.
+pub const CUT_CANTILEVER_RATE: Real = 1.0;
+
+/// One method's extrapolated limit of a quantity (the cantilever's tip by default).
 #[derive(Clone, Debug, PartialEq)]
 pub struct MethodLimit {
     /// `backend/variant`.
@@ -760,15 +959,16 @@ pub struct MethodLimit {
     pub consistent: bool,
     /// The two finest levels used.
     pub levels: (usize, usize),
-    /// Their tip values [m].
+    /// Their values (tip [m], energy [J], opening [m]).
     pub values: (Real, Real),
-    /// Richardson extrapolation with rate 2λ [m].
+    /// Richardson extrapolation with the problem's rate.
     pub limit: Real,
     /// Its estimated error: the size of the Richardson correction, |limit − finest| [m].
     pub estimated_error: Real,
 }
 
-/// The cantilever reference: the limit that independent consistent methods agree on.
+/// A reference (of the cantilever's tip, or of a cut cantilever quantity): the limit that
+/// independent consistent methods agree on.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TipReference {
     /// The agreeing methods' limits averaged with weights 1/error² [m].
@@ -793,18 +993,31 @@ impl TipReference {
 
 /// Each method's limit by Richardson with rate 2λ from its two finest cantilever runs.
 pub fn cantilever_limits(rows: &[Row], is_consistent: &dyn Fn(&str) -> bool) -> Vec<MethodLimit> {
-    let mut methods: Vec<String> =
-        rows.iter().filter(|r| r.problem == Problem::Cantilever.key()).map(Row::method).collect();
+    extrapolated_limits(rows, Problem::Cantilever, 2.0 * CANTILEVER_LAMBDA, |r| r.tip_uz_avg, is_consistent)
+}
+
+/// Each method's limit of `value` by Richardson with `rate` from its two finest runs of
+/// `problem` that have a value.
+pub fn extrapolated_limits(
+    rows: &[Row],
+    problem: Problem,
+    rate: Real,
+    value: impl Fn(&Row) -> Option<Real>,
+    is_consistent: &dyn Fn(&str) -> bool,
+) -> Vec<MethodLimit> {
+    let mut methods: Vec<String> = rows.iter().filter(|r| r.problem == problem.key()).map(Row::method).collect();
     methods.dedup();
     methods
         .into_iter()
         .filter_map(|method| {
-            let mut own: Vec<&Row> =
-                rows.iter().filter(|r| r.problem == Problem::Cantilever.key() && r.method() == method).collect();
+            let mut own: Vec<&Row> = rows
+                .iter()
+                .filter(|r| r.problem == problem.key() && r.method() == method && value(r).is_some())
+                .collect();
             own.sort_by_key(|r| r.n);
             let [.., coarse, fine] = own.as_slice() else { return None };
-            let (a, b) = (coarse.tip_uz_avg?, fine.tip_uz_avg?);
-            let limit = richardson(a, b, fine.n as Real / coarse.n as Real, 2.0 * CANTILEVER_LAMBDA);
+            let (a, b) = (value(coarse)?, value(fine)?);
+            let limit = richardson(a, b, fine.n as Real / coarse.n as Real, rate);
             Some(MethodLimit {
                 consistent: is_consistent(&method),
                 method,
@@ -825,7 +1038,22 @@ pub fn cantilever_limits(rows: &[Row], is_consistent: &dyn Fn(&str) -> bool) -> 
 /// `(Σ 1/e²)^(−1/2)` and the largest distance from it of the well-converged members (weight at
 /// least a tenth of the largest): the spread of the methods that actually pin it down.
 pub fn cantilever_reference(rows: &[Row], is_consistent: &dyn Fn(&str) -> bool) -> Option<TipReference> {
-    let limits = cantilever_limits(rows, is_consistent);
+    agreed_reference(cantilever_limits(rows, is_consistent))
+}
+
+/// The reference of the cut cantilever for `value` (tip, energy or opening): each method's
+/// limit with rate 1 ([`CUT_CANTILEVER_RATE`]) from its two finest levels, then the rule of
+/// [`cantilever_reference`].
+pub fn cut_cantilever_reference(
+    rows: &[Row],
+    value: impl Fn(&Row) -> Option<Real>,
+    is_consistent: &dyn Fn(&str) -> bool,
+) -> Option<TipReference> {
+    agreed_reference(extrapolated_limits(rows, Problem::CutCantilever, CUT_CANTILEVER_RATE, value, is_consistent))
+}
+
+/// The rule of [`cantilever_reference`] applied to `limits`.
+pub fn agreed_reference(limits: Vec<MethodLimit>) -> Option<TipReference> {
     let mut candidates: Vec<&MethodLimit> = limits.iter().filter(|l| l.consistent).collect();
     candidates.sort_by(|a, b| a.estimated_error.total_cmp(&b.estimated_error));
     let mut members: Vec<&MethodLimit> = Vec::new();
@@ -953,7 +1181,13 @@ mod tests {
             ..Default::default()
         };
         let text = format!("{CSV_HEADER}\n{}\n", row.to_csv());
-        assert_eq!(parse_csv(&text).unwrap(), vec![row]);
+        assert_eq!(parse_csv(&text).unwrap(), vec![row.clone()]);
+        // A file from before the cut columns: its 20 columns are read, the cut columns empty.
+        let old_header = CSV_HEADER.split(',').take(20).collect::<Vec<_>>().join(",");
+        let old_line = row.to_csv().split(',').take(20).collect::<Vec<_>>().join(",");
+        assert_eq!(parse_csv(&format!("{old_header}\n{old_line}\n")).unwrap(), vec![row.clone()]);
+        let cut = Row { problem: "cut-dynamic".into(), crack_opening: Some(0.5), momentum_change: Some(1e-16), ..row };
+        assert_eq!(Row::from_csv(&cut.to_csv()).unwrap(), cut);
         assert!(parse_csv("a,b\n").is_err());
     }
 }
@@ -985,6 +1219,45 @@ mod reference_tests {
         let (l, c, p) = (-3.9, 0.7, 1.422);
         let value = richardson(l + c * 0.25f64.powf(p), l + c * 0.125f64.powf(p), 2.0, p);
         assert!((value - l).abs() < 1e-13, "{value}");
+    }
+
+    fn cut_row(backend: &str, n: usize, tip: Real, energy: Real) -> Row {
+        Row {
+            problem: Problem::CutCantilever.key().into(),
+            backend: backend.into(),
+            variant: "v".into(),
+            n,
+            tip_uz_avg: Some(tip),
+            strain_energy: Some(energy),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn rate_one_extrapolation_recovers_the_limit_of_a_plus_c_h() {
+        // u(h) = a + c h, h = 1/n: any two levels give a back exactly, whatever c; the rate-2λ
+        // rule of the uncut cantilever would not: it leaves c h_f (1 − 1/(2^1.422 − 1)) = 0.089.
+        let (a, c) = (-4.25, 3.5);
+        let u = |n: usize| a + c / n as Real;
+        assert!((richardson(u(8), u(16), 2.0, CUT_CANTILEVER_RATE) - a).abs() < 1e-14);
+        assert!((richardson(u(4), u(12), 3.0, CUT_CANTILEVER_RATE) - a).abs() < 1e-14);
+        assert!((richardson(u(8), u(16), 2.0, 2.0 * CANTILEVER_LAMBDA) - a).abs() > 0.08);
+        // Through the harness: the two finest levels of each method, for any quantity.
+        let rows = vec![
+            cut_row("voxel", 2, u(2) + 1.0, 7.0),
+            cut_row("voxel", 4, u(4), 10.0 + 2.0 / 4.0),
+            cut_row("voxel", 8, u(8), 10.0 + 2.0 / 8.0),
+            cut_row("virtualnode", 4, a - 1.0 / 4.0, 10.0 - 1.0 / 4.0),
+            cut_row("virtualnode", 8, a - 1.0 / 8.0, 10.0 - 1.0 / 8.0),
+        ];
+        let tip = cut_cantilever_reference(&rows, |r| r.tip_uz_avg, &|_| true).unwrap();
+        assert_eq!(tip.limits[0].levels, (4, 8));
+        assert!(tip.limits.iter().all(|l| (l.limit - a).abs() < 1e-13), "{tip:?}");
+        assert!((tip.value - a).abs() < 1e-13 && tip.agreeing.len() == 2);
+        let energy = cut_cantilever_reference(&rows, |r| r.strain_energy, &|_| true).unwrap();
+        assert!((energy.value - 10.0).abs() < 1e-13, "{energy:?}");
+        // The uncut cantilever's rows are not the cut problem's.
+        assert!(cantilever_reference(&rows, &|_| true).is_none());
     }
 
     #[test]

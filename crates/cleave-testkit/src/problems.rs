@@ -1,6 +1,6 @@
 //! The shared benchmark problems of `shared/notes/benchmarks.md` (copied into
 //! `docs/math/benchmarks.md`): the manufactured solutions `sin111` and `cos123` on the unit cube,
-//! and the static cantilever. Backend-neutral: everything goes through the trait.
+//! the static cantilever, and its crack (§5). Backend-neutral: everything goes through the trait.
 
 use cleave_core::{Discretization, Material, Matrix3, Point3, Real, Vector3};
 use std::f64::consts::PI;
@@ -180,6 +180,51 @@ pub mod cantilever {
     }
 }
 
+/// The crack of the cut cantilever (benchmarks.md §5), and the same crack on other beams.
+pub mod crack {
+    use super::*;
+    use cleave_core::CutSurface;
+
+    /// The crack plane of the §5 cantilever: x = 2.
+    pub const PLANE_X: Real = 2.0;
+    /// Its front: the crack runs from the top face z = 1 down to z = 0.5.
+    pub const FRONT_Z: Real = 0.5;
+
+    /// The half-plane `{x = x_plane, z ≥ front_z}` over the box `lo..hi` as a soup of two
+    /// triangles in rest space that reach `overhang` past the box on the three open sides (y
+    /// below and above, z above), so the crack goes through the whole width and out of the top
+    /// face, and ends inside the material exactly at z = `front_z`.
+    pub fn half_plane(
+        lo: &Point3<Real>,
+        hi: &Point3<Real>,
+        x_plane: Real,
+        front_z: Real,
+        overhang: Real,
+    ) -> CutSurface {
+        let (y0, y1, z1) = (lo.y - overhang, hi.y + overhang, hi.z + overhang);
+        let corners = [
+            Point3::new(x_plane, y0, front_z),
+            Point3::new(x_plane, y1, front_z),
+            Point3::new(x_plane, y1, z1),
+            Point3::new(x_plane, y0, z1),
+        ];
+        CutSurface::Triangles(vec![[corners[0], corners[1], corners[2]], [corners[0], corners[2], corners[3]]])
+    }
+
+    /// The §5 crack of the 4 × 1 × 1 beam for cells of edge `h` (overhang h).
+    pub fn cantilever(h: Real) -> CutSurface {
+        half_plane(&Point3::origin(), &Point3::new(cantilever::LENGTH, 1.0, 1.0), PLANE_X, FRONT_Z, h)
+    }
+
+    /// The two points whose u_x difference is the crack opening u_x(2⁺, 0.5, 1) − u_x(2⁻, 0.5,
+    /// 1): on the top face, `1e-4 h` on either side of the plane (embedding a point exactly on
+    /// a cut picks one side; `1e-4 h` changes the difference by 2e-4 h |∂u_x/∂x|).
+    pub fn opening_points(h: Real) -> [Point3<Real>; 2] {
+        let e = 1e-4 * h;
+        [Point3::new(PLANE_X + e, 0.5, 1.0), Point3::new(PLANE_X - e, 0.5, 1.0)]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -217,5 +262,41 @@ mod tests {
                 assert!((fd - case.gradient(&p).column(j)).norm() < 1e-8);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod crack_tests {
+    use super::crack;
+    use cleave_core::{CutSurface, Point3, Real, Vector3};
+
+    /// Whether `p` lies in the closed triangle `t` (same plane assumed), by barycentric signs.
+    fn in_triangle(t: &[Point3<Real>; 3], p: &Point3<Real>) -> bool {
+        let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
+        (0..3).all(|i| (t[(i + 1) % 3] - t[i]).cross(&(p - t[i])).dot(&n) >= -1e-12)
+    }
+
+    #[test]
+    fn the_crack_covers_the_plane_above_its_front_through_the_whole_width() {
+        let h = 0.25;
+        let CutSurface::Triangles(soup) = crack::cantilever(h) else { panic!("a soup") };
+        assert_eq!(soup.len(), 2);
+        // Both triangles lie in x = 2.
+        assert!(soup.iter().flatten().all(|p| p.x == 2.0));
+        let covered = |y: Real, z: Real| soup.iter().any(|t| in_triangle(t, &Point3::new(2.0, y, z)));
+        // Every point of the beam's cross-section at x = 2 above z = 0.5 is covered, none below.
+        for i in 0..=20 {
+            for k in 0..=20 {
+                let (y, z) = (i as Real / 20.0, k as Real / 20.0);
+                assert_eq!(covered(y, z), z >= 0.5, "(2, {y}, {z})");
+            }
+        }
+        // Its area inside the beam's cross-section is 1 × 0.5; the whole soup is (1 + 2h)(0.5 + h).
+        let area: Real = soup.iter().map(|t| 0.5 * (t[1] - t[0]).cross(&(t[2] - t[0])).norm()).sum();
+        assert!((area - (1.0 + 2.0 * h) * (0.5 + h)).abs() < 1e-14, "{area}");
+        let normal = (soup[0][1] - soup[0][0]).cross(&(soup[0][2] - soup[0][0]));
+        assert!(normal.normalize().dot(&Vector3::x()).abs() > 1.0 - 1e-15);
+        let [plus, minus] = crack::opening_points(h);
+        assert!(plus.x > 2.0 && minus.x < 2.0 && (plus.x - minus.x - 2e-4 * h).abs() < 1e-15);
     }
 }

@@ -1,8 +1,10 @@
 //! The stability suite of `docs/math/benchmarks.md` §4 for any registered backend: a small
 //! clamped beam released under gravity for every (E, ν, h) of the grid, plus the extreme start
-//! states, each cell ending in a pass or a named failure.
+//! states and the beam cut by a half-depth crack (on a node plane, and 1e-6 h off it), each cell
+//! ending in a pass or a named failure.
 
-use crate::compare::{BoxGrid, CompareBackend, DirichletSpec, ExtremeCase, NotApplicable};
+use crate::compare::{BoxGrid, BuiltProblem, CompareBackend, CutError, DirichletSpec, ExtremeCase, NotApplicable};
+use crate::problems::crack;
 use cleave_core::{Material, Point3, Real, Vector3};
 use cleave_integrator::{Constraints, Integrator, Settings, StepError, StepErrorKind};
 use std::fmt;
@@ -24,6 +26,38 @@ pub fn beam_grid() -> BoxGrid {
     BoxGrid { origin: Point3::origin(), h: 0.125, dims: [8, 2, 2] }
 }
 
+/// Where the crack of a cut cell lies (benchmarks.md §5's crack on the stability beam: the plane
+/// at the beam's middle node plane x = 0.5, through the whole width from the top face down to
+/// half the depth).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CrackPlacement {
+    /// Exactly on the node plane x = 0.5 (cube faces; lattice nodes of the virtual node BCC
+    /// lattice).
+    OnNodePlane,
+    /// At x = 0.5 + [`NEAR_NODE_PLANE_OFFSET`]·h: tiny pieces next to the node plane.
+    NearNodePlane,
+}
+
+/// Distance of the near-node-plane crack from the node plane, relative to the cell edge.
+pub const NEAR_NODE_PLANE_OFFSET: Real = 1e-6;
+
+impl CrackPlacement {
+    /// Both placements, in table order.
+    pub const ALL: [CrackPlacement; 2] = [CrackPlacement::OnNodePlane, CrackPlacement::NearNodePlane];
+
+    /// The crack on the stability beam `grid`: x = the middle node plane (+ the offset), from
+    /// half the depth up through the top, overhanging the box by one cell.
+    pub fn surface(self, grid: &BoxGrid) -> cleave_core::CutSurface {
+        let offset = match self {
+            CrackPlacement::OnNodePlane => 0.0,
+            CrackPlacement::NearNodePlane => NEAR_NODE_PLANE_OFFSET,
+        };
+        let (lo, hi) = (grid.origin, grid.max_corner());
+        let x = lo.x + (grid.dims[0] / 2) as Real * grid.h + offset * grid.h;
+        crack::half_plane(&lo, &hi, x, 0.5 * (lo.z + hi.z), grid.h)
+    }
+}
+
 /// What a cell starts from.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Start {
@@ -31,6 +65,8 @@ pub enum Start {
     Rest,
     /// An extreme state, at rest, gravity on.
     Extreme(ExtremeCase),
+    /// The beam cut by the crack (each backend's own cutting), at rest, gravity on.
+    Cut(CrackPlacement),
 }
 
 /// One cell of the grid.
@@ -52,12 +88,22 @@ impl Cell {
         match self.start {
             Start::Rest => "grid",
             Start::Extreme(e) => e.key(),
+            Start::Cut(CrackPlacement::OnNodePlane) => "cut-on-node-plane",
+            Start::Cut(CrackPlacement::NearNodePlane) => "cut-near-node-plane",
         }
     }
 }
 
+/// Young's moduli of the cut cells [Pa].
+pub const CUT_YOUNGS_MODULI: [Real; 2] = [1e6, 1e12];
+/// Poisson ratios of the cut cells.
+pub const CUT_POISSON_RATIOS: [Real; 2] = [0.3, 0.4999];
+/// Time step of the cut cells [s].
+pub const CUT_TIME_STEP: Real = 1.0 / 60.0;
+
 /// The whole §4 grid (E-major, then ν, then h) followed by the three extreme cases at E = 1e6,
-/// ν = 0.3, h = 1/60 s.
+/// ν = 0.3, h = 1/60 s, then the cut beam for both crack placements at E ∈ [`CUT_YOUNGS_MODULI`],
+/// ν ∈ [`CUT_POISSON_RATIOS`], h = 1/60 s.
 pub fn cells() -> Vec<Cell> {
     let mut cells = Vec::new();
     for youngs_modulus in YOUNGS_MODULI {
@@ -74,6 +120,18 @@ pub fn cells() -> Vec<Cell> {
             time_step: 1.0 / 60.0,
             start: Start::Extreme(case),
         });
+    }
+    for placement in CrackPlacement::ALL {
+        for youngs_modulus in CUT_YOUNGS_MODULI {
+            for poisson_ratio in CUT_POISSON_RATIOS {
+                cells.push(Cell {
+                    youngs_modulus,
+                    poisson_ratio,
+                    time_step: CUT_TIME_STEP,
+                    start: Start::Cut(placement),
+                });
+            }
+        }
     }
     cells
 }
@@ -236,9 +294,19 @@ fn run_cell_inner(
     let grid = beam_grid();
     let clamped = |p: &Point3<Real>| p.x.abs() < 1e-9;
     let dirichlet = DirichletSpec { region: &clamped, value: &|_| Vector3::zeros() };
-    let extreme = match cell.start {
+    let extreme: Result<Option<BuiltProblem>, crate::compare::BuildError> = match cell.start {
         Start::Rest => Ok(None),
         Start::Extreme(case) => backend.build_extreme(variant, case, &material, &grid, &dirichlet),
+        Start::Cut(placement) => {
+            if !backend.cuts(variant) {
+                return Verdict::NotApplicable("cannot cut".into());
+            }
+            match backend.build_cut_box(variant, &material, &grid, &dirichlet, &placement.surface(&grid)) {
+                Ok(cut) => Ok(Some(cut.built)),
+                Err(CutError::CannotCut(why)) => return Verdict::NotApplicable(why),
+                Err(CutError::Build(why)) => return Verdict::Error(why),
+            }
+        }
     };
     let built =
         match extreme.and_then(|b| b.map_or_else(|| backend.build_box(variant, &material, &grid, &dirichlet), Ok)) {
@@ -246,7 +314,7 @@ fn run_cell_inner(
             Err(e) => return Verdict::Error(e.to_string()),
         };
     let start = match cell.start {
-        Start::Rest => None,
+        Start::Rest | Start::Cut(_) => None,
         Start::Extreme(case) => match backend.extreme_start(variant, case, &built, &grid) {
             Ok(x) => Some(x),
             Err(NotApplicable(why)) => return Verdict::NotApplicable(why),

@@ -13,4 +13,4 @@
 pub mod mesh;
 pub mod stiffness;
 
-pub use mesh::{VoxelError, VoxelMesh};
+pub use mesh::{CubeFace, VoxelError, VoxelMesh};

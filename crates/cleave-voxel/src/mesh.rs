@@ -1,16 +1,19 @@
 //! The voxel cube mesh (mueller2004 §2.1–2.2): equal cubes in a hash map keyed by integer
 //! coordinates, shared corner nodes, one 24×24 stiffness for the whole mesh, per-cube rotations,
-//! lumped mass, trilinear embedding, and a matrix-free warped stiffness action.
+//! lumped mass, trilinear embedding, and a matrix-free warped stiffness action. Cubes can be
+//! separated across chosen faces ([`VoxelMesh::separate_faces`]): the nodes of a cut face are
+//! duplicated, which is fracture along cube faces and the conforming cracked reference of
+//! benchmarks.md §5.
 
 use crate::stiffness::{corner_offset, corner_signs, cube_stiffness};
 use cleave_core::quadrature::gauss_legendre;
 use cleave_core::rotation::extract_rotation;
 use cleave_core::{
-    BlockSet, BlockSetBuilder, CoarseSpace, Discretization, EmbedError, Embedding, FieldSample, Mass, Material,
-    Matrix3, Point3, Real, RotationStats, Vector3,
+    BlockSet, BlockSetBuilder, CoarseSpace, Discretization, DofRemap, EmbedError, Embedding, FieldSample, FrameRemap,
+    Mass, Material, Matrix3, Point3, Real, RotationStats, TopologyChange, Vector3,
 };
 use nalgebra::DMatrix;
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 /// Why a voxel mesh could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -27,6 +30,50 @@ pub enum VoxelError {
     /// Internal block bookkeeping failed (a bug).
     #[error(transparent)]
     Blocks(#[from] cleave_core::BlockSetError),
+    /// A face to separate does not lie between two cubes of the mesh.
+    #[error("face of cube ({0}, {1}, {2}) towards +{3} does not lie between two cubes of the mesh")]
+    NotInteriorFace(i32, i32, i32, char),
+}
+
+/// The face between the cube at integer coordinates `cell` and its neighbour at `cell + e_axis`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct CubeFace {
+    /// The cube on the face's minus side.
+    pub cell: [i32; 3],
+    /// The face's normal axis (0 = x, 1 = y, 2 = z).
+    pub axis: usize,
+}
+
+impl CubeFace {
+    /// Lattice coordinates of the face's four corners.
+    pub fn corners(&self) -> [[i32; 3]; 4] {
+        let (u, v) = ((self.axis + 1) % 3, (self.axis + 2) % 3);
+        std::array::from_fn(|k| {
+            let mut c = self.cell;
+            c[self.axis] += 1;
+            c[u] += (k & 1) as i32;
+            c[v] += (k >> 1) as i32;
+            c
+        })
+    }
+}
+
+/// Union–find over node copies (one per cube corner).
+fn find(parent: &mut [u32], mut i: u32) -> u32 {
+    while parent[i as usize] != i {
+        parent[i as usize] = parent[parent[i as usize] as usize];
+        i = parent[i as usize];
+    }
+    i
+}
+
+fn unite(parent: &mut [u32], a: u32, b: u32) {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    if ra != rb {
+        // The smaller root wins, so a class is represented by its first copy.
+        let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
+        parent[hi as usize] = lo;
+    }
 }
 
 /// Iterations of the warm-started rotation extraction per step; the warm start makes 2–3 enough
@@ -53,11 +100,30 @@ pub struct VoxelMesh {
     blocks: BlockSet,
     epoch: u64,
     coarsening: i32,
+    /// Faces across which cubes do not share nodes (sorted).
+    cut_faces: Vec<CubeFace>,
 }
 
 impl VoxelMesh {
     /// Builds the mesh of the cubes `[origin + h·c, origin + h·(c+1)]` for `c ∈ cells`.
     pub fn new(material: Material, origin: Point3<Real>, h: Real, cells: &[[i32; 3]]) -> Result<Self, VoxelError> {
+        Self::with_cut_faces(material, origin, h, cells, &[])
+    }
+
+    /// Builds the mesh of `cells` with the cubes on the two sides of every face in `cut` holding
+    /// their own copies of that face's nodes (a zero-thickness crack along cube faces). Node
+    /// copies are united across every face that is not cut; a node no cut face touches is one
+    /// node for all its cubes, as in [`VoxelMesh::new`] (cubes that touch only along an edge or
+    /// at a corner keep sharing it). So a cut face's corner is duplicated exactly when the cubes
+    /// around it fall apart into several groups across uncut faces: a crack front (an edge
+    /// where the cut ends inside the material) keeps one node.
+    pub fn with_cut_faces(
+        material: Material,
+        origin: Point3<Real>,
+        h: Real,
+        cells: &[[i32; 3]],
+        cut: &[CubeFace],
+    ) -> Result<Self, VoxelError> {
         if !(h.is_finite() && h > 0.0) {
             return Err(VoxelError::CellSize(h));
         }
@@ -71,26 +137,64 @@ impl VoxelMesh {
         if let Some(w) = cells.windows(2).find(|w| w[0] == w[1]) {
             return Err(VoxelError::DuplicateCube(w[0][0], w[0][1], w[0][2]));
         }
-        let mut node_coords: Vec<[i32; 3]> = Vec::with_capacity(cells.len() * 2);
-        for cell in &cells {
-            for c in 0..8 {
-                let o = corner_offset(c);
-                node_coords.push([cell[0] + o[0], cell[1] + o[1], cell[2] + o[2]]);
+        let cell_index: HashMap<[i32; 3], u32> = cells.iter().enumerate().map(|(i, c)| (*c, i as u32)).collect();
+        let mut cut_faces: Vec<CubeFace> = cut.to_vec();
+        cut_faces.sort_unstable();
+        cut_faces.dedup();
+        for face in &cut_faces {
+            let mut other = face.cell;
+            other[face.axis.min(2)] += 1;
+            if face.axis > 2 || !cell_index.contains_key(&face.cell) || !cell_index.contains_key(&other) {
+                let c = face.cell;
+                return Err(VoxelError::NotInteriorFace(c[0], c[1], c[2], ['x', 'y', 'z'][face.axis.min(2)]));
             }
         }
-        node_coords.sort_unstable_by_key(|c| (c[2], c[1], c[0]));
-        node_coords.dedup();
-        let node_index: HashMap<[i32; 3], u32> = node_coords.iter().enumerate().map(|(i, c)| (*c, i as u32)).collect();
-        let cube_nodes: Vec<[u32; 8]> = cells
-            .iter()
-            .map(|cell| {
-                std::array::from_fn(|c| {
-                    let o = corner_offset(c);
-                    node_index[&[cell[0] + o[0], cell[1] + o[1], cell[2] + o[2]]]
-                })
-            })
+        let coords_of = |copy: usize| {
+            let (cell, o) = (cells[copy / 8], corner_offset(copy % 8));
+            [cell[0] + o[0], cell[1] + o[1], cell[2] + o[2]]
+        };
+        // Copy 8·cube + corner; united across uncut faces, and wholly at untouched nodes.
+        let mut parent: Vec<u32> = (0..8 * cells.len() as u32).collect();
+        let cut_set: HashSet<CubeFace> = cut_faces.iter().copied().collect();
+        let touched: HashSet<[i32; 3]> = cut_faces.iter().flat_map(|f| f.corners()).collect();
+        let mut first_copy: HashMap<[i32; 3], u32> = HashMap::with_capacity(cells.len() * 2);
+        for copy in 0..8 * cells.len() {
+            let coords = coords_of(copy);
+            if !touched.contains(&coords) {
+                let first = *first_copy.entry(coords).or_insert(copy as u32);
+                unite(&mut parent, first, copy as u32);
+            }
+        }
+        if !cut_faces.is_empty() {
+            for (cube, cell) in cells.iter().enumerate() {
+                for axis in 0..3 {
+                    let mut next = *cell;
+                    next[axis] += 1;
+                    let Some(&neighbour) = cell_index.get(&next) else { continue };
+                    if cut_set.contains(&CubeFace { cell: *cell, axis }) {
+                        continue;
+                    }
+                    // Corner c of this cube with bit `axis` set is corner c − 2^axis of the next.
+                    for c in (0..8).filter(|c| c & (1 << axis) != 0) {
+                        unite(&mut parent, (8 * cube + c) as u32, 8 * neighbour + (c - (1 << axis)) as u32);
+                    }
+                }
+            }
+        }
+        // One node per class, numbered z-major by lattice coordinates, then by first copy.
+        let mut classes: Vec<([i32; 3], u32)> = (0..8 * cells.len() as u32)
+            .filter(|&copy| find(&mut parent, copy) == copy)
+            .map(|copy| (coords_of(copy as usize), copy))
             .collect();
-        let cell_index = cells.iter().enumerate().map(|(i, c)| (*c, i as u32)).collect();
+        classes.sort_unstable_by_key(|(c, copy)| (c[2], c[1], c[0], *copy));
+        let mut class_node: HashMap<u32, u32> = HashMap::with_capacity(classes.len());
+        for (node, (_, copy)) in classes.iter().enumerate() {
+            class_node.insert(*copy, node as u32);
+        }
+        let node_coords: Vec<[i32; 3]> = classes.iter().map(|(c, _)| *c).collect();
+        let cube_nodes: Vec<[u32; 8]> = (0..cells.len())
+            .map(|cube| std::array::from_fn(|c| class_node[&find(&mut parent, (8 * cube + c) as u32)]))
+            .collect();
         let rest: Vec<Real> =
             node_coords.iter().flat_map(|c| (0..3).map(move |a| origin[a] + h * c[a] as Real)).collect();
         let mut lumped = vec![0.0; 3 * node_coords.len()];
@@ -123,7 +227,42 @@ impl VoxelMesh {
             blocks,
             epoch: 0,
             coarsening: DEFAULT_COARSENING,
+            cut_faces,
         })
+    }
+
+    /// The faces across which cubes do not share nodes, sorted.
+    pub fn cut_faces(&self) -> &[CubeFace] {
+        &self.cut_faces
+    }
+
+    /// This mesh with the cubes also separated across `faces` (added to [`VoxelMesh::cut_faces`]),
+    /// in the next epoch, and the change that carries state over: every new node is a copy of
+    /// the old node at its place (`DofRemap::Gather`), cubes and their frames keep their
+    /// indices. Positions and velocities mapped this way describe the same motion of every
+    /// material point, so a separation between steps adds no energy.
+    pub fn separate_faces(&self, faces: &[CubeFace]) -> Result<(VoxelMesh, TopologyChange), VoxelError> {
+        let all: Vec<CubeFace> = self.cut_faces.iter().chain(faces).copied().collect();
+        let mut mesh = Self::with_cut_faces(self.material, self.origin, self.h, &self.cells, &all)?;
+        mesh.coarsening = self.coarsening;
+        let source: Vec<u32> = {
+            let mut source = vec![u32::MAX; mesh.num_nodes()];
+            for (new, old) in mesh.cube_nodes.iter().zip(&self.cube_nodes) {
+                for (&n, &o) in new.iter().zip(old) {
+                    source[n as usize] = o;
+                }
+            }
+            source
+        };
+        let same = mesh.cut_faces == self.cut_faces;
+        mesh.epoch = if same { self.epoch } else { self.epoch + 1 };
+        let change = TopologyChange {
+            epoch: mesh.epoch,
+            remap: if same { DofRemap::Identity } else { DofRemap::Gather(source) },
+            frames: FrameRemap::Identity,
+            pattern_changed: !same,
+        };
+        Ok((mesh, change))
     }
 
     /// A box of `dims` cubes of edge `h` with minimum corner `origin`.
