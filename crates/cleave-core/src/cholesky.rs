@@ -58,6 +58,16 @@ impl std::fmt::Debug for SparseCholesky {
     }
 }
 
+/// faer's parallelism for the factorization and the solves: sequential on a pool of at most two
+/// threads. Measured on 2 cores (`bunny_slice.ron`, 5k DOFs, 1.4M factor nonzeros): 25–26 ms
+/// per factorization and solve sequential, 41–49 ms on `Par::rayon` — faer's parallel
+/// supernodal kernels spin-wait for work that two cores shared with the step's own rayon work
+/// cannot give them (6 s of system time a run against 1 s). Wider pools keep faer's parallel
+/// kernels (not measured here).
+fn parallelism() -> Par {
+    if rayon::current_num_threads() <= 2 { Par::Seq } else { Par::rayon(0) }
+}
+
 impl SparseCholesky {
     /// Orders the node graph of `pattern` and builds the symbolic factorization (once per pattern).
     pub fn new(pattern: &AssemblyPattern) -> Result<Self, CholeskyError> {
@@ -74,7 +84,7 @@ impl SparseCholesky {
         )
         .map_err(|e| CholeskyError::Setup(format!("symbolic factorization: {e:?}")))?;
         let order_groups = ordering.groups;
-        let par = Par::rayon(0);
+        let par = parallelism();
         let scratch = MemBuffer::try_new(StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<Real>(par, Default::default()),
             symbolic.solve_in_place_scratch::<Real>(1, par),
@@ -103,7 +113,7 @@ impl SparseCholesky {
             matrix,
             Side::Lower,
             LltRegularization::default(),
-            Par::rayon(0),
+            parallelism(),
             MemStack::new(&mut self.scratch),
             Default::default(),
         );
@@ -118,7 +128,7 @@ impl SparseCholesky {
     /// # Panics
     /// Before a successful [`factorize`](Self::factorize): a caller bug, not a user-input error.
     pub fn solve_in_place(&mut self, rhs: &mut [Real]) {
-        self.solve_with(rhs, Par::rayon(0));
+        self.solve_with(rhs, parallelism());
     }
 
     /// As [`solve_in_place`](Self::solve_in_place) on one thread (for small systems solved often,
