@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Checks that the CSV outputs of `cargo xtask compare --quick` and `cargo xtask stability --quick`
 parse: the stated header, numbers (or empty cells) where numbers belong, every quick study present,
-the whole stability grid with a verdict in every cell, Table 1 timings, and the cut table of
+the whole stability grid with a verdict in every cell, a crack that opens and a cut that adds no
+energy in the cut-cantilever rows, Table 1 timings, and the cut table of
 bunny_slice.ron (a virtualnode row that cut into at least three pieces and kept volume and mass
 to 1e-12). Usage: check_results.py DIR."""
 import csv
@@ -12,7 +13,10 @@ from pathlib import Path
 COMPARE_HEADER = ("problem,backend,variant,n,dofs,elements,nnz,l2_rel_error,h1_rel_error,tip_uz_avg,"
                   "tip_uz_point,strain_energy,seconds_setup,seconds_assemble,seconds_solve,seconds_total,"
                   "peak_rss_mb").split(",")
-STABILITY_CELLS = 4 * 5 * 3 + 3
+# §4's grid, the three extreme cells, and the cut beam at E in {1e6, 1e12}, nu in {0.3, 0.4999}
+# with the crack on a node plane and 1e-6 h off it (not-applicable cells count: every method
+# has every cell).
+STABILITY_CELLS = 4 * 5 * 3 + 3 + 2 * 2 * 2
 
 
 def number(text, column, line):
@@ -37,9 +41,17 @@ def main(directory):
         if int(row["dofs"]) <= 0:
             raise SystemExit(f"compare.csv line {i}: no DOFs")
     problems = {r["problem"] for r in rows if r["backend"] == "voxel"}
-    expected = {"mms-sin111", "mms-cos123", "cantilever", "dynamic"}
+    expected = {"mms-sin111", "mms-cos123", "cantilever", "dynamic", "cut-cantilever", "cut-dynamic"}
     if problems != expected:
         raise SystemExit(f"voxel rows cover {sorted(problems)}, expected {sorted(expected)}")
+    for i, row in enumerate(rows, start=2):
+        if row["problem"] == "cut-cantilever" and not number(row["crack_opening"], "crack_opening", i) > 0:
+            raise SystemExit(f"compare.csv line {i}: the crack of {row['backend']} does not open")
+        if row["problem"] == "cut-dynamic":
+            before = number(row["energy_before_cut"], "energy_before_cut", i)
+            after = number(row["energy_after_cut"], "energy_after_cut", i)
+            if after - before > 1e-9 * abs(before):
+                raise SystemExit(f"compare.csv line {i}: the cut added energy ({before} -> {after} J)")
     l2 = [float(r["l2_rel_error"]) for r in rows if r["problem"] == "mms-sin111" and r["backend"] == "voxel"]
     if not all(a > b for a, b in zip(l2, l2[1:])):
         raise SystemExit(f"voxel L2 errors do not decrease: {l2}")

@@ -893,30 +893,24 @@ mod tests {
     use super::*;
     use crate::constraints::{PlaneCollider, SurfaceContact};
 
-    /// Two triangles of two pieces, the upper one sunk into the lower, with a tilted ground
-    /// plane under a corner: every point its own node.
-    fn setup() -> (Constraints, Vec<Real>, Vec<Real>) {
+    /// Two triangles of two pieces (points 0–2 and 3–5, every point its own node) at `lower`
+    /// and `upper`; at rest the upper one floats 1 m higher, so nothing touches there.
+    fn two_triangles(
+        lower: [[Real; 3]; 3],
+        upper: [[Real; 3]; 3],
+        planes: Vec<PlaneCollider>,
+    ) -> (Constraints, Vec<Real>, Vec<Real>) {
         let mut points = Embedding::new();
         for i in 0..6u32 {
             points.push_row(&[i], &[1.0]);
         }
-        let lower = [[0.0, 0.0, 0.0], [1.0, 0.1, 0.02], [0.2, 1.0, -0.03]];
-        let upper = [[0.3, 0.3, -0.004], [0.35, 0.5, -0.002], [0.55, 0.3, 0.05]];
         let x: Vec<Real> = lower.iter().chain(&upper).flatten().copied().collect();
-        // At rest the upper triangle floats above the lower one.
         let rest: Vec<Real> =
             x.iter().enumerate().map(|(i, &c)| if i >= 9 && i % 3 == 2 { c + 1.0 } else { c }).collect();
         let constraints = Constraints {
             contact_points: Some(points),
-            planes: vec![PlaneCollider {
-                point: Point3::new(0.0, 0.0, 0.01),
-                normal: Vector3::new(0.1, -0.2, 1.0).normalize(),
-                stiffness: 3e3,
-                damping: 0.0,
-                friction: 0.0,
-            }],
+            planes,
             surface_contact: Some(SurfaceContact {
-                // Lower faces up, upper faces down: opposing.
                 triangles: vec![[0, 1, 2], [3, 4, 5]],
                 on_cut: Vec::new(),
                 stiffness: 1e4,
@@ -931,34 +925,32 @@ mod tests {
         (constraints, x, rest)
     }
 
-    /// Two triangles of two pieces whose edges cross 3.7 mm into each other (an edge along x
-    /// whose triangle faces up, one along y whose triangle faces down), slightly skewed so that
-    /// nothing is axis aligned, with no point near the other's face: an edge–edge contact.
-    fn crossing_edges() -> (Constraints, Vec<Real>, Vec<Real>) {
-        let mut points = Embedding::new();
-        for i in 0..6u32 {
-            points.push_row(&[i], &[1.0]);
-        }
-        let lower = [[0.5, 0.02, 0.01], [-0.5, -0.01, -0.01], [0.03, -0.5, -0.5]];
-        let upper = [[0.1, -0.5, -0.002], [0.12, 0.5, -0.001], [0.6, 0.02, 0.5]];
-        let x: Vec<Real> = lower.iter().chain(&upper).flatten().copied().collect();
-        let rest: Vec<Real> =
-            x.iter().enumerate().map(|(i, &c)| if i >= 9 && i % 3 == 2 { c + 1.0 } else { c }).collect();
-        let constraints = Constraints {
-            contact_points: Some(points),
-            surface_contact: Some(SurfaceContact {
-                triangles: vec![[0, 1, 2], [3, 4, 5]],
-                on_cut: Vec::new(),
-                stiffness: 1e4,
-                damping: 0.0,
-                friction: 0.0,
-                thickness: 0.0,
-                reach: 0.05,
-                edge_contact: true,
-            }),
-            ..Default::default()
+    /// The upper triangle sunk into the lower one (lower faces up, upper faces down: opposing),
+    /// with a tilted ground plane under a corner.
+    fn setup() -> (Constraints, Vec<Real>, Vec<Real>) {
+        let ground = PlaneCollider {
+            point: Point3::new(0.0, 0.0, 0.01),
+            normal: Vector3::new(0.1, -0.2, 1.0).normalize(),
+            stiffness: 3e3,
+            damping: 0.0,
+            friction: 0.0,
         };
-        (constraints, x, rest)
+        two_triangles(
+            [[0.0, 0.0, 0.0], [1.0, 0.1, 0.02], [0.2, 1.0, -0.03]],
+            [[0.3, 0.3, -0.004], [0.35, 0.5, -0.002], [0.55, 0.3, 0.05]],
+            vec![ground],
+        )
+    }
+
+    /// Two triangles whose edges cross 3.7 mm into each other (an edge along x whose triangle
+    /// faces up, one along y whose triangle faces down), slightly skewed so that nothing is
+    /// axis aligned, with no point near the other's face: an edge–edge contact.
+    fn crossing_edges() -> (Constraints, Vec<Real>, Vec<Real>) {
+        two_triangles(
+            [[0.5, 0.02, 0.01], [-0.5, -0.01, -0.01], [0.03, -0.5, -0.5]],
+            [[0.1, -0.5, -0.002], [0.12, 0.5, -0.001], [0.6, 0.02, 0.5]],
+            Vec::new(),
+        )
     }
 
     #[test]
