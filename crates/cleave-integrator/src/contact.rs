@@ -146,6 +146,8 @@ pub(crate) struct ContactSet {
     /// more than two faces meet): edge–edge contact searches from feature edges only.
     edges: Vec<[u32; 2]>,
     edge_faces: Vec<[u32; 2]>,
+    /// Per triangle, the edge from its vertex `k` to vertex `k + 1` (for the edge pseudonormals).
+    triangle_edges: Vec<[u32; 3]>,
     is_feature: Vec<bool>,
     feature_edges: Vec<u32>,
     /// Per surface component its edges, with a bounding volume hierarchy over them.
@@ -155,6 +157,8 @@ pub(crate) struct ContactSet {
     /// Normal force of the last step per (collider, point): planes, then meshes, then the
     /// surface; what friction is proportional to.
     lagged: Vec<Real>,
+    trace_prev: Vec<[u32; 3]>,
+    trace_step: usize,
 }
 
 impl std::fmt::Debug for ContactSet {
@@ -183,6 +187,16 @@ fn contact_normal(
 ) -> Option<Vector3<Real>> {
     let offset = q - c;
     (distance == 0.0 || (offset - n * n.dot(&offset)).norm() <= lateral.max(1e-9 * distance)).then_some(*n)
+}
+
+/// A point's pair with one triangle: gap along `normal`, distance to the triangle, and the
+/// barycentrics of the triangle point it meets.
+struct Candidate {
+    gap: Real,
+    distance: Real,
+    triangle: usize,
+    beta: [Real; 3],
+    normal: Vector3<Real>,
 }
 
 /// Edges whose faces meet at an angle with cosine below this at rest (about 26°) are feature
@@ -357,7 +371,13 @@ impl ContactSet {
             (b - a).cross(&(c - a)).try_normalize(0.0)
         };
         self.component_edges = vec![Vec::new(); self.component_points.len()];
+        self.triangle_edges = vec![[0; 3]; triangles.len()];
         for group in sides.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
+            for &(a, b, t) in group {
+                let tri = triangles[t as usize];
+                let k = (0..3).find(|&k| tri[k].min(tri[(k + 1) % 3]) == a && tri[k].max(tri[(k + 1) % 3]) == b);
+                self.triangle_edges[t as usize][k.unwrap_or(0)] = self.edges.len() as u32;
+            }
             let faces = [group[0].2, group.get(1).map_or(group[0].2, |g| g.2)];
             let feature = group.len() != 2
                 || match (rest_normal(faces[0]), rest_normal(faces[1])) {
@@ -388,6 +408,33 @@ impl ContactSet {
         }
         let on = Point3::from(a.coords * beta[0] + b.coords * beta[1] + c.coords * beta[2]);
         normal.dot(&(self.rest[i] - on)) / scale < -1e-9 * (b - a).norm().max((c - a).norm())
+    }
+
+    /// The angle-weighted pseudonormal (not normalized) of the feature of triangle `t` that
+    /// holds its point at barycentrics `beta`: the triangle's normal inside it, the sum of the
+    /// two faces' normals on an edge, the angle-weighted vertex normal at a corner. Its sign
+    /// against `q − c`, with `c` the nearest surface point, tells whether `q` lies inside a
+    /// closed surface (Bærentzen & Aanæs 2005).
+    fn pseudonormal(&self, t: usize, tri: &[u32; 3], beta: &[Real; 3]) -> Vector3<Real> {
+        match beta.map(|b| b == 0.0) {
+            [false, false, false] => self.triangle_normals[t],
+            // On the edge from vertex k to k + 1, opposite the zero weight.
+            [false, false, true] | [true, false, false] | [false, true, false] => {
+                let k = if beta[2] == 0.0 {
+                    0
+                } else if beta[0] == 0.0 {
+                    1
+                } else {
+                    2
+                };
+                let [f0, f1] = self.edge_faces[self.triangle_edges[t][k] as usize];
+                self.triangle_normals[f0 as usize] + self.triangle_normals[f1 as usize]
+            }
+            _ => {
+                let corner = (0..3).max_by(|&a, &b| beta[a].total_cmp(&beta[b])).unwrap_or(0);
+                self.vertex_normals[tri[corner] as usize]
+            }
+        }
     }
 
     fn excluded(&self, point: u32, triangle: &[u32; 3]) -> bool {
@@ -482,13 +529,21 @@ impl ContactSet {
         self.vertex_normals.clear();
         self.vertex_normals.resize(positions.len(), Vector3::zeros());
         self.triangle_normals.clear();
+        // Weighted by the triangle's angle at the vertex: the angle-weighted pseudonormal, whose
+        // sign against `q − c` tells inside from outside where `c` is a vertex of a closed
+        // surface (Bærentzen & Aanæs 2005; docs/math/contact.md §2).
         for t in triangles {
-            let [a, b, c] = t.map(|i| positions[i as usize]);
-            let area_normal = (b - a).cross(&(c - a));
-            for &i in t {
-                self.vertex_normals[i as usize] += area_normal;
+            let corners = t.map(|i| positions[i as usize]);
+            let normal = (corners[1] - corners[0])
+                .cross(&(corners[2] - corners[0]))
+                .try_normalize(0.0)
+                .unwrap_or_else(Vector3::zeros);
+            for k in 0..3 {
+                let (u, w) = (corners[(k + 1) % 3] - corners[k], corners[(k + 2) % 3] - corners[k]);
+                let angle = u.cross(&w).norm().atan2(u.dot(&w));
+                self.vertex_normals[t[k] as usize] += normal * angle;
             }
-            self.triangle_normals.push(area_normal.try_normalize(0.0).unwrap_or_else(Vector3::zeros));
+            self.triangle_normals.push(normal);
         }
         // Motion is bounded relative to the mean velocity `w_b` of the piece searched:
         // |u_q − u_t| ≤ |u_q − w_b| + |u_t − w_b|, the second in the leaf boxes, the first in
@@ -551,59 +606,105 @@ impl ContactSet {
                 let motion = Vector3::repeat(h * (u - this.component_velocity[b]).norm());
                 Aabb::new(to_parry(&(q - motion)), to_parry(&(q + motion)))
             };
-            let mut best: Option<(Real, usize, Point3<Real>, [Real; 3])> = None;
-            // Other pieces' whole surfaces; the point's own piece only through its cut faces
-            // (the two faces of an unfinished cut, a flap): its own smooth surface around the
-            // point is never visited.
             let own = this.component[i] as usize;
-            for b in 0..this.bvh_all.len() {
-                let (bvh, list) = if b == own {
-                    (&this.bvh_cut[b], &this.component_cut_triangles[b])
-                } else {
-                    (&this.bvh_all[b], &this.component_triangles[b])
-                };
-                let query = query(b);
-                for t in bvh.intersect_aabb(&query).map(|leaf| list[leaf as usize]) {
+            // Per searched surface its pair for this point; the smallest gap wins.
+            let mut best: Option<Candidate> = None;
+            let mut consider = |candidate: Candidate| {
+                let tri = triangles[candidate.triangle];
+                let other_velocity = tri
+                    .iter()
+                    .zip(&candidate.beta)
+                    .fold(Vector3::zeros(), |s, (&k, &b)| s + velocities[k as usize] * b);
+                let reach = surface.reach
+                    + h * ((u - other_velocity).norm()
+                        + tri.iter().map(|&k| (velocities[k as usize] - other_velocity).norm()).fold(0.0, Real::max));
+                // Farther than the reach is no contact yet; deeper than it behind the surface
+                // is beyond what the search sees (the boxes hold the reach).
+                if candidate.distance > reach || candidate.gap < -surface.reach {
+                    return;
+                }
+                if best.as_ref().is_none_or(|b| candidate.gap < b.gap) {
+                    best = Some(candidate);
+                }
+            };
+            // The point's own piece only through its cut faces (the two faces of an unfinished
+            // cut, a flap): its own smooth surface around the point is never visited. A pair
+            // needs opposing faces and no adjacency, and the closest such triangle is taken.
+            {
+                let query = query(own);
+                let list = &this.component_cut_triangles[own];
+                let mut nearest: Option<(Real, usize, Point3<Real>, [Real; 3])> = None;
+                for t in this.bvh_cut[own].intersect_aabb(&query).map(|leaf| list[leaf as usize]) {
                     let tri = &triangles[t as usize];
-                    // Cheapest first: a contact needs opposing surfaces (this also drops the
-                    // point's own smooth surface around it), then no adjacency.
                     if vertex_normal.dot(&this.triangle_normals[t as usize]) >= 0.0 || this.excluded(i as u32, tri) {
                         continue;
                     }
                     let corners = tri.map(|k| positions[k as usize]);
                     let (c, beta) = closest_point_on_triangle(&q, &corners);
                     let distance = (q - c).norm();
-                    if contact_normal(&q, &c, &this.triangle_normals[t as usize], distance, lateral).is_none() {
+                    if contact_normal(&q, &c, &this.triangle_normals[t as usize], distance, lateral).is_none()
+                        || this.behind_at_rest(i, tri, &beta)
+                    {
                         continue;
                     }
-                    if this.component[i] == this.component[tri[0] as usize] && this.behind_at_rest(i, tri, &beta) {
+                    if nearest.is_none_or(|b| distance < b.0) {
+                        nearest = Some((distance, t as usize, c, beta));
+                    }
+                }
+                if let Some((distance, triangle, c, beta)) = nearest {
+                    let normal = this.triangle_normals[triangle];
+                    consider(Candidate { gap: normal.dot(&(q - c)), distance, triangle, beta, normal });
+                }
+            }
+            // Every other piece by its signed distance: the nearest triangle of its closed
+            // surface, inside or outside by the pseudonormal of the nearest feature (face, edge
+            // or vertex); inside, the normal along q − c. Taking a farther triangle because a nearer one
+            // faces the wrong way, as a facing filter does, made points on or beside another
+            // piece's rim "penetrate" a face beyond the rim by up to the reach (most of the
+            // deep contacts after a cut through touching pieces: docs/math/contact.md §5).
+            for b in 0..this.bvh_all.len() {
+                if b == own {
+                    continue;
+                }
+                let (query, list) = (query(b), &this.component_triangles[b]);
+                let mut nearest: Option<(Real, usize, Point3<Real>, [Real; 3])> = None;
+                for t in this.bvh_all[b].intersect_aabb(&query).map(|leaf| list[leaf as usize]) {
+                    let corners = triangles[t as usize].map(|k| positions[k as usize]);
+                    // The distance to the triangle's plane bounds the distance to it from below.
+                    let to_plane = this.triangle_normals[t as usize].dot(&(q - corners[0])).abs();
+                    if nearest.is_some_and(|b| to_plane >= b.0) {
                         continue;
                     }
-                    if best.is_none_or(|b| distance < b.0) {
-                        best = Some((distance, t as usize, c, beta));
+                    let (c, beta) = closest_point_on_triangle(&q, &corners);
+                    let distance = (q - c).norm();
+                    if nearest.is_none_or(|b| distance < b.0) {
+                        nearest = Some((distance, t as usize, c, beta));
+                    }
+                }
+                let Some((distance, t, c, beta)) = nearest else { continue };
+                let offset = q - c;
+                if distance > 1e-9 * surface.reach && offset.dot(&this.pseudonormal(t, &triangles[t], &beta)) < 0.0 {
+                    // Inside: pushed out along the shortest way, whatever feature is nearest.
+                    consider(Candidate { gap: -distance, distance, triangle: t, beta, normal: -offset / distance });
+                } else {
+                    // Outside or touching: only a face it projects into and that faces it. An
+                    // edge or corner nearest from outside is no contact yet (its direction
+                    // q − c says little about where the point will meet the surface: a point
+                    // 2 cm beside an edge, closing along x, would get a sideways push), and no
+                    // farther triangle stands in for it.
+                    let normal = this.triangle_normals[t];
+                    if vertex_normal.dot(&normal) < 0.0 && contact_normal(&q, &c, &normal, distance, lateral).is_some()
+                    {
+                        consider(Candidate { gap: normal.dot(&offset), distance, triangle: t, beta, normal });
                     }
                 }
             }
-            let Some((distance, t, c, beta)) = best else { return };
-            let tri = triangles[t];
-            // Along q − c, so the two forces act on one line and conserve angular momentum:
-            // the triangle's normal where the point projects into it, else the direction from
-            // the closest edge or corner, on the side the triangle's normal says.
-            let Some(normal) = contact_normal(&q, &c, &this.triangle_normals[t], distance, lateral) else { return };
+            let Some(Candidate { gap, triangle, beta, normal, .. }) = best else { return };
+            let tri = triangles[triangle];
             let other_velocity =
                 tri.iter().zip(&beta).fold(Vector3::zeros(), |s, (&k, &b)| s + velocities[k as usize] * b);
             let relative = u - other_velocity;
-            let reach = surface.reach
-                + h * (relative.norm()
-                    + tri.iter().map(|&k| (velocities[k as usize] - other_velocity).norm()).fold(0.0, Real::max));
-            if distance > reach {
-                return;
-            }
-            let d = normal.dot(&(q - c)) - surface.thickness;
-            // Deeper than `reach` behind a triangle is the far side of a thin part, not contact.
-            if d < -surface.reach {
-                return;
-            }
+            let d = gap - surface.thickness;
             let which = (ContactKind::Surface, (first_slot + i) as u32, this.lagged[first_slot + i]);
             // Touching counts (faces a cut has just separated coincide, and nothing else would
             // hold the upper one up in the step after the cut), up to rounding of the gap.
@@ -612,6 +713,97 @@ impl ContactSet {
                 make_contact(Row::vertex_triangle(i as u32, tri, beta), which, normal, gap, &relative, 0.0, h, params);
         });
         self.contacts.extend(per_point.iter().flatten().copied());
+        if let Ok(threshold) = std::env::var("CLEAVE_TRACE_DEPTH") {
+            let threshold: Real = threshold.parse().unwrap_or(5e-4);
+            let first = self.trace_prev.len() != positions.len();
+            if first {
+                self.trace_prev = vec![[u32::MAX; 3]; positions.len()];
+            }
+            self.trace_step += 1;
+            let (mut new_deep, mut old_deep, mut new_energy, mut switched_energy) = (0, 0, 0.0, 0.0);
+            let on_cut_point = {
+                let mut f = vec![false; positions.len()];
+                for (t, tri) in triangles.iter().enumerate() {
+                    if surface.on_cut.get(t).copied().unwrap_or(false) {
+                        for &k in tri {
+                            f[k as usize] = true;
+                        }
+                    }
+                }
+                f
+            };
+            for (i, slot) in per_point.iter().enumerate() {
+                let Some(c) = slot else {
+                    if !first {
+                        self.trace_prev[i] = [u32::MAX; 3];
+                    }
+                    continue;
+                };
+                let t = [c.row.points[1], c.row.points[2], c.row.points[3]];
+                let prev = self.trace_prev[i];
+                if c.depth < -threshold {
+                    let e = 0.5 * c.stiffness * c.depth * c.depth;
+                    let tri = t;
+                    let lag = self.lagged[first_slot + i];
+                    if prev[0] == u32::MAX || first {
+                        new_deep += 1;
+                        new_energy += e;
+                    } else {
+                        old_deep += 1;
+                        if prev != t {
+                            switched_energy += e;
+                        }
+                    }
+                    if prev != t || first {
+                        let q = positions[i];
+                        let oc = self.component[tri[0] as usize];
+                        let (mut true_d, mut wind, mut rest_d) = (Real::MAX, 0.0, Real::MAX);
+                        for (tt, tr) in triangles.iter().enumerate() {
+                            if self.component[tr[0] as usize] != oc {
+                                continue;
+                            }
+                            let corners = tr.map(|k| positions[k as usize]);
+                            let (c, _) = closest_point_on_triangle(&q, &corners);
+                            true_d = true_d.min((q - c).norm());
+                            let rc = tr.map(|k| self.rest[k as usize]);
+                            rest_d =
+                                rest_d.min((self.rest[i] - closest_point_on_triangle(&self.rest[i], &rc).0).norm());
+                            let [a, b, cc] = corners.map(|p| p - q);
+                            let (la, lb, lc) = (a.norm(), b.norm(), cc.norm());
+                            let num = a.dot(&b.cross(&cc));
+                            let den = la * lb * lc + a.dot(&b) * lc + b.dot(&cc) * la + cc.dot(&a) * lb;
+                            wind += 2.0 * num.atan2(den);
+                            let _ = tt;
+                        }
+                        let tn = self.triangle_normals[0];
+                        let _ = tn;
+                        eprintln!(
+                            "  true_dist {:.2e} winding {:.3} rest_dist {:.2e} vn {:?}",
+                            true_d,
+                            wind / (4.0 * std::f64::consts::PI),
+                            rest_d,
+                            self.vertex_normals[i].try_normalize(0.0).map(|n| [n.x, n.y, n.z])
+                        );
+                        eprintln!(
+                            "trace step {} first {first} point {i} comp {} -> comp {} d {:.2e} lag {:.2e} prev {} tri {t:?} pt_cut {} tri_cut {}",
+                            self.trace_step,
+                            self.component[i],
+                            self.component[tri[0] as usize],
+                            c.depth,
+                            lag,
+                            prev[0] as i64,
+                            on_cut_point[i],
+                            on_cut_point[t[0] as usize] && on_cut_point[t[1] as usize] && on_cut_point[t[2] as usize]
+                        );
+                    }
+                }
+                self.trace_prev[i] = t;
+            }
+            eprintln!(
+                "trace step {} first {first} deep new {new_deep} ({new_energy:.3e} J) old {old_deep} switched {switched_energy:.3e} J",
+                self.trace_step
+            );
+        }
         self.per_point = per_point;
     }
 
@@ -967,6 +1159,100 @@ mod tests {
         println!("{stats:?}; the edges cross {gap:.3e} m deep");
         assert_eq!(stats.edges, 1, "{stats:?}");
         assert!((stats.max_penetration - gap).abs() < 1e-12 * gap.max(1.0), "{} vs {gap}", stats.max_penetration);
+    }
+
+    /// Surface points of a small tetrahedron tossed around the rim of a thin slab (4 mm, thinner
+    /// than twice the reach) in 3000 random poses: every point–triangle contact of a tetrahedron
+    /// point is exactly the slab's analytic signed distance where the point is inside the slab,
+    /// and there is none where it is outside. A facing filter that skipped the nearest face and
+    /// took a farther one gave points on or beside the rim depths of up to the slab's thickness
+    /// (docs/math/contact.md §5).
+    #[test]
+    fn surface_contact_depth_is_the_signed_distance_of_the_other_piece() {
+        let (size, thick) = (1.0, 0.004);
+        let slab: Vec<[Real; 3]> =
+            (0..8).map(|k| [size * (k & 1) as Real, size * ((k >> 1) & 1) as Real, thick * (k >> 2) as Real]).collect();
+        // Outward, counter-clockwise seen from outside.
+        let slab_triangles: [[u32; 3]; 12] = [
+            [0, 2, 1],
+            [1, 2, 3],
+            [4, 5, 6],
+            [5, 7, 6],
+            [0, 1, 4],
+            [1, 5, 4],
+            [2, 6, 3],
+            [3, 6, 7],
+            [0, 4, 2],
+            [2, 4, 6],
+            [1, 3, 5],
+            [3, 7, 5],
+        ];
+        let inside_depth = |p: &Point3<Real>| {
+            let d = [p.x, size - p.x, p.y, size - p.y, p.z, thick - p.z];
+            d.iter().all(|&d| d > 0.0).then(|| d.iter().copied().fold(Real::MAX, Real::min))
+        };
+        let mut state: u64 = 0x9e37_79b9_7f4a_7c15;
+        let mut random = || {
+            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as Real / (1u64 << 53) as Real
+        };
+        let (mut inside_points, mut checked) = (0, 0);
+        for _ in 0..3000 {
+            // A regular tetrahedron of edge ~6 mm, randomly turned, centred within 6 mm of the
+            // slab's edge x = 1 at a random height around the slab.
+            let axis = Vector3::new(random() - 0.5, random() - 0.5, random() - 0.5);
+            let turn = nalgebra::Rotation3::new(axis * 6.0);
+            let centre = Vector3::new(size + 0.012 * (random() - 0.5), 0.5, thick * (3.0 * random() - 1.0));
+            let corners = [[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]]
+                .map(|c| turn * Vector3::from(c) * 0.002 + centre);
+            let mut points = Embedding::new();
+            for i in 0..12u32 {
+                points.push_row(&[i], &[1.0]);
+            }
+            let x: Vec<Real> =
+                slab.iter().flatten().copied().chain(corners.iter().flat_map(|c| [c.x, c.y, c.z])).collect();
+            let rest: Vec<Real> = x.iter().enumerate().map(|(i, &c)| if i >= 24 { c + 10.0 } else { c }).collect();
+            let mut triangles = slab_triangles.to_vec();
+            triangles.extend([[8, 9, 10], [8, 11, 9], [8, 10, 11], [9, 11, 10]]);
+            let constraints = Constraints {
+                contact_points: Some(points),
+                surface_contact: Some(SurfaceContact {
+                    triangles,
+                    on_cut: Vec::new(),
+                    stiffness: 1e4,
+                    damping: 0.0,
+                    friction: 0.0,
+                    thickness: 0.0,
+                    reach: 0.01,
+                    edge_contact: false,
+                }),
+                ..Default::default()
+            };
+            let mut set = ContactSet::new(&constraints, &rest);
+            set.detect(&constraints, &x, &vec![0.0; x.len()], 0.01, &Vector3::zeros());
+            for k in 8..12u32 {
+                let p = Point3::from(corners[k as usize - 8]);
+                let contact = set.contacts.iter().find(|c| c.kind == ContactKind::Surface && c.row.points[0] == k);
+                match (inside_depth(&p), contact) {
+                    (Some(depth), Some(c)) => {
+                        inside_points += 1;
+                        assert!(
+                            (c.depth + depth).abs() < 1e-12,
+                            "point {p} is {depth} m inside, contact depth {}",
+                            c.depth
+                        );
+                    }
+                    (Some(depth), None) => panic!("point {p} is {depth} m inside the slab and has no contact"),
+                    (None, Some(c)) => {
+                        assert!(c.depth >= -1e-12, "point {p} is outside the slab and has contact depth {}", c.depth)
+                    }
+                    (None, None) => {}
+                }
+                checked += 1;
+            }
+        }
+        println!("{checked} points, {inside_points} inside the slab");
+        assert!(inside_points > 300, "the poses must put many points inside the slab");
     }
 
     #[test]
