@@ -97,6 +97,20 @@ pub(crate) struct Contact {
     pub kind: ContactKind,
 }
 
+/// A surface pair within the reach that the start-of-step velocities did not predict to close:
+/// what [`make_contact`] needs to activate it later.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct NearPair {
+    row: Row,
+    which: (ContactKind, u32, Real),
+    normal: Vector3<Real>,
+    gap: (Real, Real, Real),
+    params: (Real, Real, Real),
+    /// Penetration the solution may predict before the pair joins: a tenth of the reach, so
+    /// that resting pairs closing by rounding do not cost a second solve every step.
+    slack: Real,
+}
+
 /// Counts and depth of the active contacts of a step.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ContactStats {
@@ -124,6 +138,11 @@ pub(crate) struct ContactSet {
     triangle_normals: Vec<Vector3<Real>>,
     /// One-ring of every surface point (CSR), itself included: pairs excluded by adjacency.
     ring_offsets: Vec<usize>,
+    /// Triangles around every surface point (CSR), and every triangle's points: the corner
+    /// pseudonormals.
+    vertex_triangle_offsets: Vec<usize>,
+    vertex_triangles: Vec<u32>,
+    triangle_corners: Vec<[u32; 3]>,
     ring: Vec<u32>,
     /// Rest position of every surface point, and the connected component of the surface it
     /// belongs to (triangles sharing vertices).
@@ -141,6 +160,9 @@ pub(crate) struct ContactSet {
     bvh_cut: Vec<Bvh>,
     bvh_workspace: BvhWorkspace,
     per_point: Vec<Option<Contact>>,
+    /// Per surface point, the pair it found this step but did not activate (not predicted to
+    /// close): [`ContactSet::activate_driven`] activates it when the step's solution closes it.
+    near: Vec<Option<NearPair>>,
     /// Surface edges (point pairs), the triangles on either side, and the *feature* edges among
     /// them (where the faces meet at more than [`FEATURE_DIHEDRAL_COS`] at rest, or fewer or
     /// more than two faces meet): edge–edge contact searches from feature edges only.
@@ -157,8 +179,6 @@ pub(crate) struct ContactSet {
     /// Normal force of the last step per (collider, point): planes, then meshes, then the
     /// surface; what friction is proportional to.
     lagged: Vec<Real>,
-    trace_prev: Vec<[u32; 3]>,
-    trace_step: usize,
 }
 
 impl std::fmt::Debug for ContactSet {
@@ -311,6 +331,25 @@ impl ContactSet {
                 set.ring_offsets.push(set.ring.len());
             }
             set.find_edges(&surface.triangles);
+            let mut counts = vec![0usize; points.len() + 1];
+            for t in &surface.triangles {
+                for &k in t {
+                    counts[k as usize + 1] += 1;
+                }
+            }
+            for k in 0..points.len() {
+                counts[k + 1] += counts[k];
+            }
+            let mut fill = counts.clone();
+            set.vertex_triangles = vec![0; counts[points.len()]];
+            for (u, t) in surface.triangles.iter().enumerate() {
+                for &k in t {
+                    set.vertex_triangles[fill[k as usize]] = u as u32;
+                    fill[k as usize] += 1;
+                }
+            }
+            set.vertex_triangle_offsets = counts;
+            set.triangle_corners = surface.triangles.clone();
         }
         set
     }
@@ -431,8 +470,18 @@ impl ContactSet {
                 self.triangle_normals[f0 as usize] + self.triangle_normals[f1 as usize]
             }
             _ => {
-                let corner = (0..3).max_by(|&a, &b| beta[a].total_cmp(&beta[b])).unwrap_or(0);
-                self.vertex_normals[tri[corner] as usize]
+                // Weighted by each triangle's angle at the corner (area weights are not exact
+                // here); computed only for the rare point whose nearest feature is a corner.
+                let corner = tri[(0..3).max_by(|&a, &b| beta[a].total_cmp(&beta[b])).unwrap_or(0)];
+                let range =
+                    self.vertex_triangle_offsets[corner as usize]..self.vertex_triangle_offsets[corner as usize + 1];
+                self.vertex_triangles[range].iter().fold(Vector3::zeros(), |sum, &u| {
+                    let around = &self.triangle_corners[u as usize];
+                    let k = (0..3).find(|&k| around[k] == corner).unwrap_or(0);
+                    let p = around.map(|i| self.positions[i as usize]);
+                    let (e1, e2) = (p[(k + 1) % 3] - p[k], p[(k + 2) % 3] - p[k]);
+                    sum + self.triangle_normals[u as usize] * e1.cross(&e2).norm().atan2(e1.dot(&e2))
+                })
             }
         }
     }
@@ -514,14 +563,20 @@ impl ContactSet {
         }
         self.per_point = per_point;
         if let Some(surface) = &constraints.surface_contact {
-            self.detect_surface(surface, h, (colliders - 1) * n);
+            self.detect_surface(surface, h, gravity, (colliders - 1) * n);
             if surface.edge_contact {
                 self.detect_edges(surface, h, colliders * n);
             }
         }
     }
 
-    fn detect_surface(&mut self, surface: &crate::constraints::SurfaceContact, h: Real, first_slot: usize) {
+    fn detect_surface(
+        &mut self,
+        surface: &crate::constraints::SurfaceContact,
+        h: Real,
+        gravity: &Vector3<Real>,
+        first_slot: usize,
+    ) {
         let (positions, velocities) = (&self.positions, &self.velocities);
         let triangles = &surface.triangles;
         // Deformed vertex normals (area weighted): a contact needs opposing surfaces, so points
@@ -529,21 +584,13 @@ impl ContactSet {
         self.vertex_normals.clear();
         self.vertex_normals.resize(positions.len(), Vector3::zeros());
         self.triangle_normals.clear();
-        // Weighted by the triangle's angle at the vertex: the angle-weighted pseudonormal, whose
-        // sign against `q − c` tells inside from outside where `c` is a vertex of a closed
-        // surface (Bærentzen & Aanæs 2005; docs/math/contact.md §2).
         for t in triangles {
-            let corners = t.map(|i| positions[i as usize]);
-            let normal = (corners[1] - corners[0])
-                .cross(&(corners[2] - corners[0]))
-                .try_normalize(0.0)
-                .unwrap_or_else(Vector3::zeros);
-            for k in 0..3 {
-                let (u, w) = (corners[(k + 1) % 3] - corners[k], corners[(k + 2) % 3] - corners[k]);
-                let angle = u.cross(&w).norm().atan2(u.dot(&w));
-                self.vertex_normals[t[k] as usize] += normal * angle;
+            let [a, b, c] = t.map(|i| positions[i as usize]);
+            let area_normal = (b - a).cross(&(c - a));
+            for &i in t {
+                self.vertex_normals[i as usize] += area_normal;
             }
-            self.triangle_normals.push(normal);
+            self.triangle_normals.push(area_normal.try_normalize(0.0).unwrap_or_else(Vector3::zeros));
         }
         // Motion is bounded relative to the mean velocity `w_b` of the piece searched:
         // |u_q − u_t| ≤ |u_q − w_b| + |u_t − w_b|, the second in the leaf boxes, the first in
@@ -590,12 +637,15 @@ impl ContactSet {
             }
         }
         let mut per_point = std::mem::take(&mut self.per_point);
+        let mut near = std::mem::take(&mut self.near);
+        near.clear();
+        near.resize(self.positions.len(), None);
         let this = &*self;
         let params = (surface.stiffness, surface.damping, surface.friction);
         let lateral = LATERAL_FRACTION * surface.reach;
         per_point.clear();
         per_point.resize(positions.len(), None);
-        per_point.par_iter_mut().enumerate().for_each(|(i, slot)| {
+        per_point.par_iter_mut().zip(near.par_iter_mut()).enumerate().for_each(|(i, (slot, near))| {
             let q = positions[i];
             let u = velocities[i];
             let vertex_normal = this.vertex_normals[i];
@@ -683,7 +733,16 @@ impl ContactSet {
                 }
                 let Some((distance, t, c, beta)) = nearest else { continue };
                 let offset = q - c;
-                if distance > 1e-9 * surface.reach && offset.dot(&this.pseudonormal(t, &triangles[t], &beta)) < 0.0 {
+                // Inside by the pseudonormal, and behind the nearest triangle's own plane: where
+                // an edge or corner of a piece is not manifold (two regions of one piece meeting
+                // there), its pseudonormal can say inside for a point beside it, and a point
+                // inside near a reflex edge or corner, the only inside points whose nearest
+                // feature is not a face, is behind every face there.
+                let behind = this.triangle_normals[t].dot(&offset) < 0.0;
+                if distance > 1e-9 * surface.reach
+                    && behind
+                    && offset.dot(&this.pseudonormal(t, &triangles[t], &beta)) < 0.0
+                {
                     // Inside: pushed out along the shortest way, whatever feature is nearest.
                     consider(Candidate { gap: -distance, distance, triangle: t, beta, normal: -offset / distance });
                 } else {
@@ -709,101 +768,19 @@ impl ContactSet {
             // Touching counts (faces a cut has just separated coincide, and nothing else would
             // hold the upper one up in the step after the cut), up to rounding of the gap.
             let gap = (d, -surface.thickness, 1e-9 * surface.reach);
-            *slot =
-                make_contact(Row::vertex_triangle(i as u32, tri, beta), which, normal, gap, &relative, 0.0, h, params);
+            let row = Row::vertex_triangle(i as u32, tri, beta);
+            // Gravity enters the prediction where the triangle's side is at rest (slower than a
+            // step of free fall, g h): a piece lying on another falls onto it as onto the
+            // ground. Where both sides move, they may be falling together, and it does not.
+            let resting = other_velocity.norm() < h * gravity.norm();
+            let gravity_along = if resting { normal.dot(gravity) } else { 0.0 };
+            *slot = make_contact(row, which, normal, gap, &relative, gravity_along, h, params);
+            if slot.is_none() {
+                *near = Some(NearPair { row, which, normal, gap, params, slack: 0.5 * surface.reach });
+            }
         });
         self.contacts.extend(per_point.iter().flatten().copied());
-        if let Ok(threshold) = std::env::var("CLEAVE_TRACE_DEPTH") {
-            let threshold: Real = threshold.parse().unwrap_or(5e-4);
-            let first = self.trace_prev.len() != positions.len();
-            if first {
-                self.trace_prev = vec![[u32::MAX; 3]; positions.len()];
-            }
-            self.trace_step += 1;
-            let (mut new_deep, mut old_deep, mut new_energy, mut switched_energy) = (0, 0, 0.0, 0.0);
-            let on_cut_point = {
-                let mut f = vec![false; positions.len()];
-                for (t, tri) in triangles.iter().enumerate() {
-                    if surface.on_cut.get(t).copied().unwrap_or(false) {
-                        for &k in tri {
-                            f[k as usize] = true;
-                        }
-                    }
-                }
-                f
-            };
-            for (i, slot) in per_point.iter().enumerate() {
-                let Some(c) = slot else {
-                    if !first {
-                        self.trace_prev[i] = [u32::MAX; 3];
-                    }
-                    continue;
-                };
-                let t = [c.row.points[1], c.row.points[2], c.row.points[3]];
-                let prev = self.trace_prev[i];
-                if c.depth < -threshold {
-                    let e = 0.5 * c.stiffness * c.depth * c.depth;
-                    let tri = t;
-                    let lag = self.lagged[first_slot + i];
-                    if prev[0] == u32::MAX || first {
-                        new_deep += 1;
-                        new_energy += e;
-                    } else {
-                        old_deep += 1;
-                        if prev != t {
-                            switched_energy += e;
-                        }
-                    }
-                    if prev != t || first {
-                        let q = positions[i];
-                        let oc = self.component[tri[0] as usize];
-                        let (mut true_d, mut wind, mut rest_d) = (Real::MAX, 0.0, Real::MAX);
-                        for (tt, tr) in triangles.iter().enumerate() {
-                            if self.component[tr[0] as usize] != oc {
-                                continue;
-                            }
-                            let corners = tr.map(|k| positions[k as usize]);
-                            let (c, _) = closest_point_on_triangle(&q, &corners);
-                            true_d = true_d.min((q - c).norm());
-                            let rc = tr.map(|k| self.rest[k as usize]);
-                            rest_d =
-                                rest_d.min((self.rest[i] - closest_point_on_triangle(&self.rest[i], &rc).0).norm());
-                            let [a, b, cc] = corners.map(|p| p - q);
-                            let (la, lb, lc) = (a.norm(), b.norm(), cc.norm());
-                            let num = a.dot(&b.cross(&cc));
-                            let den = la * lb * lc + a.dot(&b) * lc + b.dot(&cc) * la + cc.dot(&a) * lb;
-                            wind += 2.0 * num.atan2(den);
-                            let _ = tt;
-                        }
-                        let tn = self.triangle_normals[0];
-                        let _ = tn;
-                        eprintln!(
-                            "  true_dist {:.2e} winding {:.3} rest_dist {:.2e} vn {:?}",
-                            true_d,
-                            wind / (4.0 * std::f64::consts::PI),
-                            rest_d,
-                            self.vertex_normals[i].try_normalize(0.0).map(|n| [n.x, n.y, n.z])
-                        );
-                        eprintln!(
-                            "trace step {} first {first} point {i} comp {} -> comp {} d {:.2e} lag {:.2e} prev {} tri {t:?} pt_cut {} tri_cut {}",
-                            self.trace_step,
-                            self.component[i],
-                            self.component[tri[0] as usize],
-                            c.depth,
-                            lag,
-                            prev[0] as i64,
-                            on_cut_point[i],
-                            on_cut_point[t[0] as usize] && on_cut_point[t[1] as usize] && on_cut_point[t[2] as usize]
-                        );
-                    }
-                }
-                self.trace_prev[i] = t;
-            }
-            eprintln!(
-                "trace step {} first {first} deep new {new_deep} ({new_energy:.3e} J) old {old_deep} switched {switched_energy:.3e} J",
-                self.trace_step
-            );
-        }
+        self.near = near;
         self.per_point = per_point;
     }
 
@@ -927,6 +904,30 @@ impl ContactSet {
             let force = -c.stiffness * (c.depth.min(0.0) + h * approach) - c.damping * approach;
             self.lagged[c.slot as usize] = force.max(0.0);
         }
+    }
+
+    /// Activates the near pairs of this step's detection that velocities `v` (the step's
+    /// solution) close within the step, `d + h n·u⁺ <` touching, and returns how many: the
+    /// caller solves again with them. Their gap is not negative, so they add no force, only
+    /// the implicit term that stops the approach (docs/math/contact.md §3).
+    pub fn activate_driven(&mut self, points: &Embedding, v: &[Real], h: Real) -> usize {
+        let mut added = 0;
+        for slot in self.near.iter_mut() {
+            let Some(pair) = slot else { continue };
+            let u = pair
+                .row
+                .entries()
+                .fold(Vector3::zeros(), |sum, (point, w)| sum + points.point(v, point as usize).coords * w);
+            if pair.gap.0 + h * pair.normal.dot(&u) < -pair.slack
+                && let Some(contact) =
+                    make_contact(pair.row, pair.which, pair.normal, pair.gap, &u, 0.0, h, pair.params)
+            {
+                self.contacts.push(contact);
+                added += 1;
+                *slot = None;
+            }
+        }
+        added
     }
 
     /// Counts per kind and the deepest penetration.

@@ -148,6 +148,9 @@ impl StepReport {
     }
 }
 
+/// How many times a step is solved again for pairs its solution drives into each other.
+const DRIVEN_CONTACT_PASSES: usize = 2;
+
 /// Per-step scratch, sized once per epoch.
 #[derive(Debug, Default)]
 struct Workspace {
@@ -481,109 +484,130 @@ impl Integrator {
                 *r = 0.0;
             }
         }
-        if let Some(system) = &self.system
-            && self.constraints.surface_contact.is_some()
-            && let Some(points) = &self.constraints.contact_points
-        {
-            // A point and a surface triangle that were never in contact in this epoch couple
-            // nodes the pattern lacks: grow the pattern (a new symbolic factorization), keeping
-            // every coupling seen so far, so contacts that persist cost nothing more.
-            let missing = contact::missing_couplings(points, &self.work.contacts, &system.pattern);
-            if !missing.is_empty() {
-                let clock = Instant::now();
-                self.contact_couplings.extend(missing);
-                self.system = Some(AssembledSystem::new(
-                    discretization,
-                    &self.constraints,
-                    &self.contact_couplings,
-                    self.settings.solver == Solver::Cholesky,
-                )?);
-                self.pattern_growths += 1;
-                seconds.pattern = clock.elapsed().as_secs_f64();
-            }
-        }
-        if let Some(system) = &mut self.system {
-            system.fill(discretization, &self.rotations, mass_scale, stiffness_scale);
-            Self::add_penalty_matrix(&self.constraints, &self.work.contacts, h, system);
-            system.apply_pins();
-        }
-        seconds.assembly = clock.elapsed().as_secs_f64();
-
-        // Solve for v⁺.
-        let clock = Instant::now();
-        let (iterations, residual) = match self.settings.solver {
-            Solver::Cholesky => {
-                let system = self.system.as_mut().expect("Cholesky builds the system");
-                system.factorize()?;
-                self.v.copy_from_slice(&self.work.rhs);
-                system.solve_in_place(&mut self.v);
-                (1, 0.0)
-            }
-            Solver::ConjugateGradient { tolerance, max_iterations, .. } => {
-                self.build_preconditioner(discretization, mass_scale, stiffness_scale, h);
-                for (v, &p) in self.v.iter_mut().zip(&self.pinned) {
-                    if p {
-                        *v = 0.0;
-                    }
+        // Assemble and solve; then, once or twice, the pairs that were near but not active and
+        // that the solution drives into each other (a piece deflected into another within the
+        // step, which the start-of-step velocities did not predict) join the step and it is
+        // solved again with the same right-hand side (their gap is not negative, so they add
+        // no force, only the implicit term that stops their approach: docs/math/contact.md §3).
+        let mut assembly_clock = clock;
+        let mut passes = 0;
+        // Iterations summed over the passes (a Cholesky pass counts one).
+        let mut iterations = 0;
+        let residual = loop {
+            if let Some(system) = &self.system
+                && self.constraints.surface_contact.is_some()
+                && let Some(points) = &self.constraints.contact_points
+            {
+                // A point and a surface triangle that were never in contact in this epoch couple
+                // nodes the pattern lacks: grow the pattern (a new symbolic factorization), keeping
+                // every coupling seen so far, so contacts that persist cost nothing more.
+                let missing = contact::missing_couplings(points, &self.work.contacts, &system.pattern);
+                if !missing.is_empty() {
+                    let clock = Instant::now();
+                    self.contact_couplings.extend(missing);
+                    self.system = Some(AssembledSystem::new(
+                        discretization,
+                        &self.constraints,
+                        &self.contact_couplings,
+                        self.settings.solver == Solver::Cholesky,
+                    )?);
+                    self.pattern_growths += 1;
+                    seconds.pattern += clock.elapsed().as_secs_f64();
                 }
-                let pinned = &self.pinned;
-                let rotations = &self.rotations;
-                let contact_points = self.constraints.contact_points.as_ref();
-                let contacts = &self.work.contacts.contacts;
-                let penalty_pins = self.constraints.penalty_pins.as_ref();
-                let system = &self.system;
-                let preconditioner = &self.work.preconditioner;
-                let mut two_level = self.two_level.as_mut();
-                // One step's external impulse `h ‖f_ext‖` floors the residual scale (see cg.rs).
-                let load_scale = h * self.external_force.iter().map(|f| f * f).sum::<Real>().sqrt();
-                let outcome = self.work.cg.solve(
-                    |p, out| match system {
-                        Some(s) => {
-                            s.pattern.mul_vec(&s.values, p, out);
+            }
+            if let Some(system) = &mut self.system {
+                system.fill(discretization, &self.rotations, mass_scale, stiffness_scale);
+                Self::add_penalty_matrix(&self.constraints, &self.work.contacts, h, system);
+                system.apply_pins();
+            }
+            seconds.assembly += assembly_clock.elapsed().as_secs_f64();
+
+            // Solve for v⁺.
+            let clock = Instant::now();
+            let solved = match self.settings.solver {
+                Solver::Cholesky => {
+                    let system = self.system.as_mut().expect("Cholesky builds the system");
+                    system.factorize()?;
+                    self.v.copy_from_slice(&self.work.rhs);
+                    system.solve_in_place(&mut self.v);
+                    (1, 0.0)
+                }
+                Solver::ConjugateGradient { tolerance, max_iterations, .. } => {
+                    self.build_preconditioner(discretization, mass_scale, stiffness_scale, h);
+                    for (v, &p) in self.v.iter_mut().zip(&self.pinned) {
+                        if p {
+                            *v = 0.0;
                         }
-                        None => {
-                            mass.apply(p, out);
-                            if mass_scale != 1.0 {
-                                out.iter_mut().for_each(|o| *o *= mass_scale);
+                    }
+                    let pinned = &self.pinned;
+                    let rotations = &self.rotations;
+                    let contact_points = self.constraints.contact_points.as_ref();
+                    let contacts = &self.work.contacts.contacts;
+                    let penalty_pins = self.constraints.penalty_pins.as_ref();
+                    let system = &self.system;
+                    let preconditioner = &self.work.preconditioner;
+                    let mut two_level = self.two_level.as_mut();
+                    // One step's external impulse `h ‖f_ext‖` floors the residual scale (see cg.rs).
+                    let load_scale = h * self.external_force.iter().map(|f| f * f).sum::<Real>().sqrt();
+                    let outcome = self.work.cg.solve(
+                        |p, out| match system {
+                            Some(s) => {
+                                s.pattern.mul_vec(&s.values, p, out);
                             }
-                            discretization.add_stiffness_action(rotations, p, stiffness_scale, out);
-                            if let Some(points) = contact_points {
-                                contact::add_action(points, contacts, p, out);
-                            }
-                            add_pin_action(penalty_pins, h, p, out);
-                            for (o, &pin) in out.iter_mut().zip(pinned) {
-                                if pin {
-                                    *o = 0.0;
+                            None => {
+                                mass.apply(p, out);
+                                if mass_scale != 1.0 {
+                                    out.iter_mut().for_each(|o| *o *= mass_scale);
+                                }
+                                discretization.add_stiffness_action(rotations, p, stiffness_scale, out);
+                                if let Some(points) = contact_points {
+                                    contact::add_action(points, contacts, p, out);
+                                }
+                                add_pin_action(penalty_pins, h, p, out);
+                                for (o, &pin) in out.iter_mut().zip(pinned) {
+                                    if pin {
+                                        *o = 0.0;
+                                    }
                                 }
                             }
-                        }
-                    },
-                    |r, z| {
-                        z.par_chunks_mut(3).zip(r.par_chunks(3)).zip(preconditioner).for_each(|((z, r), m)| {
-                            let y = m * Vector3::new(r[0], r[1], r[2]);
-                            z.copy_from_slice(y.as_slice());
-                        });
-                        if let Some(two_level) = two_level.as_deref_mut() {
-                            two_level.add_correction(r, z);
-                        }
-                    },
-                    &self.work.rhs,
-                    load_scale,
-                    &mut self.v,
-                    tolerance,
-                    max_iterations,
-                );
-                if !outcome.converged {
-                    return Err(StepErrorKind::CgNotConverged {
-                        iterations: outcome.iterations,
-                        residual: outcome.relative_residual,
+                        },
+                        |r, z| {
+                            z.par_chunks_mut(3).zip(r.par_chunks(3)).zip(preconditioner).for_each(|((z, r), m)| {
+                                let y = m * Vector3::new(r[0], r[1], r[2]);
+                                z.copy_from_slice(y.as_slice());
+                            });
+                            if let Some(two_level) = two_level.as_deref_mut() {
+                                two_level.add_correction(r, z);
+                            }
+                        },
+                        &self.work.rhs,
+                        load_scale,
+                        &mut self.v,
                         tolerance,
-                    });
+                        max_iterations,
+                    );
+                    if !outcome.converged {
+                        return Err(StepErrorKind::CgNotConverged {
+                            iterations: outcome.iterations,
+                            residual: outcome.relative_residual,
+                            tolerance,
+                        });
+                    }
+                    (outcome.iterations, outcome.relative_residual)
                 }
-                (outcome.iterations, outcome.relative_residual)
+            };
+            seconds.solve += clock.elapsed().as_secs_f64();
+            iterations += solved.0;
+            if passes == DRIVEN_CONTACT_PASSES {
+                break solved.1;
             }
+            let Some(points) = self.constraints.contact_points.as_ref() else { break solved.1 };
+            if self.work.contacts.activate_driven(points, &self.v, h) == 0 {
+                break solved.1;
+            }
+            passes += 1;
+            assembly_clock = Instant::now();
         };
-        seconds.solve = clock.elapsed().as_secs_f64();
 
         // Update and check.
         let clock = Instant::now();
