@@ -1004,12 +1004,14 @@ pub(crate) fn energy(points: &Embedding, contacts: &[Contact], x: &[Real]) -> (R
 pub(crate) fn missing_couplings(points: &Embedding, set: &ContactSet, pattern: &AssemblyPattern) -> Vec<Vec<u32>> {
     let mut missing = Vec::new();
     let mut nodes: Vec<u32> = Vec::with_capacity(16);
-    for c in set.contacts.iter().filter(|c| c.row.len > 1) {
+    let mut add_if_missing = |row: &Row, missing: &mut Vec<Vec<u32>>| {
         nodes.clear();
-        for_each_entry(points, c, |n, _| nodes.push(n));
+        for (point, _) in row.entries() {
+            nodes.extend_from_slice(points.row(point as usize).0);
+        }
         if nodes.iter().any(|&j| nodes.iter().any(|&i| pattern.rank(i, j).is_none())) {
             let mut group = Vec::new();
-            for (v, _) in c.row.entries() {
+            for (v, _) in row.entries() {
                 for &around in &set.ring[set.ring_offsets[v as usize]..set.ring_offsets[v as usize + 1]] {
                     group.extend_from_slice(points.row(around as usize).0);
                 }
@@ -1017,6 +1019,16 @@ pub(crate) fn missing_couplings(points: &Embedding, set: &ContactSet, pattern: &
             group.sort_unstable();
             group.dedup();
             missing.push(group);
+        }
+    };
+    for c in set.contacts.iter().filter(|c| c.row.len > 1) {
+        add_if_missing(&c.row, &mut missing);
+    }
+    // The pattern grows anyway: the near pairs (within the reach, not active yet) join it too,
+    // so that they cost no growth of their own when they close in a later step.
+    if !missing.is_empty() {
+        for pair in set.near.iter().flatten() {
+            add_if_missing(&pair.row, &mut missing);
         }
     }
     missing
