@@ -1174,6 +1174,37 @@ mod tests {
         assert!((stats.max_penetration - gap).abs() < 1e-12 * gap.max(1.0), "{} vs {gap}", stats.max_penetration);
     }
 
+    /// Two points 1 mm above a flat triangle of another piece, at rest: not active, but kept as
+    /// near pairs; a solution that moves them down joins them exactly when it carries them more
+    /// than half the reach (0.025 m) through, `d + h n·u⁺ < −reach/2`, each with the implicit
+    /// block `h² k n nᵀ` (1.0 here).
+    #[test]
+    fn pairs_the_solution_drives_together_join_the_step() {
+        let (constraints, x, rest) = two_triangles(
+            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            [[0.3, 0.3, 0.001], [0.35, 0.5, 0.001], [0.55, 0.3, 0.2]],
+            Vec::new(),
+        );
+        let points = constraints.contact_points.clone().unwrap();
+        let h = 0.01;
+        for (speed, expected) in [(2.5, 0), (3.1, 2)] {
+            let mut set = ContactSet::new(&constraints, &rest);
+            set.detect(&constraints, &x, &vec![0.0; x.len()], h, &Vector3::zeros());
+            assert_eq!(set.stats().surface, 0, "nothing closes at rest");
+            let mut v = vec![0.0; x.len()];
+            v[3 * 3 + 2] = -speed;
+            v[3 * 4 + 2] = -speed;
+            let added = set.activate_driven(&points, &v, h);
+            println!("down at {speed} m/s: predicted gap {:.4} m, {added} pairs join", 0.001 - h * speed);
+            assert_eq!(added, expected);
+            for c in &set.contacts {
+                assert_eq!(c.kind, ContactKind::Surface);
+                assert!((c.normal - Vector3::z()).norm() < 1e-12 && (c.depth - 0.001).abs() < 1e-12);
+                assert!((c.matrix - Matrix3::from_diagonal(&Vector3::new(0.0, 0.0, h * h * 1e4))).norm() < 1e-12);
+            }
+        }
+    }
+
     /// Surface points of a small tetrahedron tossed around the rim of a thin slab (4 mm, thinner
     /// than twice the reach) in 3000 random poses: every point–triangle contact of a tetrahedron
     /// point is exactly the slab's analytic signed distance where the point is inside the slab,
