@@ -1024,13 +1024,6 @@ pub(crate) fn missing_couplings(points: &Embedding, set: &ContactSet, pattern: &
     for c in set.contacts.iter().filter(|c| c.row.len > 1) {
         add_if_missing(&c.row, &mut missing);
     }
-    // The pattern grows anyway: the near pairs (within the reach, not active yet) join it too,
-    // so that they cost no growth of their own when they close in a later step.
-    if !missing.is_empty() {
-        for pair in set.near.iter().flatten() {
-            add_if_missing(&pair.row, &mut missing);
-        }
-    }
     missing
 }
 
