@@ -106,8 +106,9 @@ pub(crate) struct NearPair {
     normal: Vector3<Real>,
     gap: (Real, Real, Real),
     params: (Real, Real, Real),
-    /// Penetration the solution may predict before the pair joins: a tenth of the reach, so
-    /// that resting pairs closing by rounding do not cost a second solve every step.
+    /// Penetration the solution may predict before the pair joins: half the reach, so that
+    /// pairs closing by a little do not cost a second solve (the next step's prediction sees
+    /// them).
     slack: Real,
 }
 
@@ -138,12 +139,10 @@ pub(crate) struct ContactSet {
     triangle_normals: Vec<Vector3<Real>>,
     /// One-ring of every surface point (CSR), itself included: pairs excluded by adjacency.
     ring_offsets: Vec<usize>,
-    /// Triangles around every surface point (CSR), and every triangle's points: the corner
-    /// pseudonormals.
+    ring: Vec<u32>,
+    /// Triangles around every surface point (CSR): the corner pseudonormals.
     vertex_triangle_offsets: Vec<usize>,
     vertex_triangles: Vec<u32>,
-    triangle_corners: Vec<[u32; 3]>,
-    ring: Vec<u32>,
     /// Rest position of every surface point, and the connected component of the surface it
     /// belongs to (triangles sharing vertices).
     rest: Vec<Point3<Real>>,
@@ -349,7 +348,6 @@ impl ContactSet {
                 }
             }
             set.vertex_triangle_offsets = counts;
-            set.triangle_corners = surface.triangles.clone();
         }
         set
     }
@@ -454,7 +452,7 @@ impl ContactSet {
     /// two faces' normals on an edge, the angle-weighted vertex normal at a corner. Its sign
     /// against `q − c`, with `c` the nearest surface point, tells whether `q` lies inside a
     /// closed surface (Bærentzen & Aanæs 2005).
-    fn pseudonormal(&self, t: usize, tri: &[u32; 3], beta: &[Real; 3]) -> Vector3<Real> {
+    fn pseudonormal(&self, triangles: &[[u32; 3]], t: usize, beta: &[Real; 3]) -> Vector3<Real> {
         match beta.map(|b| b == 0.0) {
             [false, false, false] => self.triangle_normals[t],
             // On the edge from vertex k to k + 1, opposite the zero weight.
@@ -472,11 +470,11 @@ impl ContactSet {
             _ => {
                 // Weighted by each triangle's angle at the corner (area weights are not exact
                 // here); computed only for the rare point whose nearest feature is a corner.
-                let corner = tri[(0..3).max_by(|&a, &b| beta[a].total_cmp(&beta[b])).unwrap_or(0)];
+                let corner = triangles[t][(0..3).max_by(|&a, &b| beta[a].total_cmp(&beta[b])).unwrap_or(0)];
                 let range =
                     self.vertex_triangle_offsets[corner as usize]..self.vertex_triangle_offsets[corner as usize + 1];
                 self.vertex_triangles[range].iter().fold(Vector3::zeros(), |sum, &u| {
-                    let around = &self.triangle_corners[u as usize];
+                    let around = &triangles[u as usize];
                     let k = (0..3).find(|&k| around[k] == corner).unwrap_or(0);
                     let p = around.map(|i| self.positions[i as usize]);
                     let (e1, e2) = (p[(k + 1) % 3] - p[k], p[(k + 2) % 3] - p[k]);
@@ -741,7 +739,7 @@ impl ContactSet {
                 let behind = this.triangle_normals[t].dot(&offset) < 0.0;
                 if distance > 1e-9 * surface.reach
                     && behind
-                    && offset.dot(&this.pseudonormal(t, &triangles[t], &beta)) < 0.0
+                    && offset.dot(&this.pseudonormal(triangles, t, &beta)) < 0.0
                 {
                     // Inside: pushed out along the shortest way, whatever feature is nearest.
                     consider(Candidate { gap: -distance, distance, triangle: t, beta, normal: -offset / distance });
@@ -907,7 +905,8 @@ impl ContactSet {
     }
 
     /// Activates the near pairs of this step's detection that velocities `v` (the step's
-    /// solution) close within the step, `d + h n·u⁺ <` touching, and returns how many: the
+    /// solution) drive more than their slack into each other, `d + h n·u⁺ < −slack` (half the
+    /// reach), and returns how many: the
     /// caller solves again with them. Their gap is not negative, so they add no force, only
     /// the implicit term that stops the approach (docs/math/contact.md §3).
     pub fn activate_driven(&mut self, points: &Embedding, v: &[Real], h: Real) -> usize {
@@ -1004,14 +1003,12 @@ pub(crate) fn energy(points: &Embedding, contacts: &[Contact], x: &[Real]) -> (R
 pub(crate) fn missing_couplings(points: &Embedding, set: &ContactSet, pattern: &AssemblyPattern) -> Vec<Vec<u32>> {
     let mut missing = Vec::new();
     let mut nodes: Vec<u32> = Vec::with_capacity(16);
-    let mut add_if_missing = |row: &Row, missing: &mut Vec<Vec<u32>>| {
+    for c in set.contacts.iter().filter(|c| c.row.len > 1) {
         nodes.clear();
-        for (point, _) in row.entries() {
-            nodes.extend_from_slice(points.row(point as usize).0);
-        }
+        for_each_entry(points, c, |n, _| nodes.push(n));
         if nodes.iter().any(|&j| nodes.iter().any(|&i| pattern.rank(i, j).is_none())) {
             let mut group = Vec::new();
-            for (v, _) in row.entries() {
+            for (v, _) in c.row.entries() {
                 for &around in &set.ring[set.ring_offsets[v as usize]..set.ring_offsets[v as usize + 1]] {
                     group.extend_from_slice(points.row(around as usize).0);
                 }
@@ -1020,9 +1017,6 @@ pub(crate) fn missing_couplings(points: &Embedding, set: &ContactSet, pattern: &
             group.dedup();
             missing.push(group);
         }
-    };
-    for c in set.contacts.iter().filter(|c| c.row.len > 1) {
-        add_if_missing(&c.row, &mut missing);
     }
     missing
 }
