@@ -1162,32 +1162,42 @@ mod tests {
     }
 
     /// Two points 1 mm above a flat triangle of another piece, at rest: not active, but kept as
-    /// near pairs; a solution that moves them down joins them exactly when it carries them more
-    /// than half the reach (0.025 m) through, `d + h n·u⁺ < −reach/2`, each with the implicit
-    /// block `h² k n nᵀ` (1.0 here).
+    /// near pairs; a solution that moves them towards it joins them exactly when it carries them
+    /// more than half the reach (0.025 m) through, `d + h n·u⁺ < −reach/2`, each with the
+    /// implicit block `h² k n nᵀ` (1.0 along `n`). The same in a turned and moved copy of the
+    /// scene, where the normal is not an axis.
     #[test]
     fn pairs_the_solution_drives_together_join_the_step() {
-        let (constraints, x, rest) = two_triangles(
-            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
-            [[0.3, 0.3, 0.001], [0.35, 0.5, 0.001], [0.55, 0.3, 0.2]],
-            Vec::new(),
-        );
-        let points = constraints.contact_points.clone().unwrap();
-        let h = 0.01;
-        for (speed, expected) in [(2.5, 0), (3.1, 2)] {
-            let mut set = ContactSet::new(&constraints, &rest);
-            set.detect(&constraints, &x, &vec![0.0; x.len()], h, &Vector3::zeros());
-            assert_eq!(set.stats().surface, 0, "nothing closes at rest");
-            let mut v = vec![0.0; x.len()];
-            v[3 * 3 + 2] = -speed;
-            v[3 * 4 + 2] = -speed;
-            let added = set.activate_driven(&points, &v, h);
-            println!("down at {speed} m/s: predicted gap {:.4} m, {added} pairs join", 0.001 - h * speed);
-            assert_eq!(added, expected);
-            for c in &set.contacts {
-                assert_eq!(c.kind, ContactKind::Surface);
-                assert!((c.normal - Vector3::z()).norm() < 1e-12 && (c.depth - 0.001).abs() < 1e-12);
-                assert!((c.matrix - Matrix3::from_diagonal(&Vector3::new(0.0, 0.0, h * h * 1e4))).norm() < 1e-12);
+        let turns = [
+            (nalgebra::Rotation3::identity(), Vector3::zeros()),
+            (nalgebra::Rotation3::new(Vector3::new(0.4, -0.9, 0.3)), Vector3::new(2.0, -1.0, 0.5)),
+        ];
+        for (turn, shift) in turns {
+            let place = |p: [Real; 3]| (turn * Vector3::from(p) + shift).into();
+            let (constraints, x, rest) = two_triangles(
+                [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]].map(place),
+                [[0.3, 0.3, 0.001], [0.35, 0.5, 0.001], [0.55, 0.3, 0.2]].map(place),
+                Vec::new(),
+            );
+            let normal = turn * Vector3::z();
+            let points = constraints.contact_points.clone().unwrap();
+            let h = 0.01;
+            for (speed, expected) in [(2.5, 0), (3.1, 2)] {
+                let mut set = ContactSet::new(&constraints, &rest);
+                set.detect(&constraints, &x, &vec![0.0; x.len()], h, &Vector3::zeros());
+                assert_eq!(set.stats().surface, 0, "nothing closes at rest");
+                let mut v = vec![0.0; x.len()];
+                for k in [3, 4] {
+                    v[3 * k..3 * k + 3].copy_from_slice((-speed * normal).as_slice());
+                }
+                let added = set.activate_driven(&points, &v, h);
+                println!("towards it at {speed} m/s: predicted gap {:.4} m, {added} pairs join", 0.001 - h * speed);
+                assert_eq!(added, expected);
+                for c in &set.contacts {
+                    assert_eq!(c.kind, ContactKind::Surface);
+                    assert!((c.normal - normal).norm() < 1e-12 && (c.depth - 0.001).abs() < 1e-12, "{c:?}");
+                    assert!((c.matrix - normal * normal.transpose() * (h * h * 1e4)).norm() < 1e-9);
+                }
             }
         }
     }

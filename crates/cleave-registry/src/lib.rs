@@ -100,3 +100,17 @@ impl CompareBackend for CompareOf {
         self.0.compare().extreme_start(variant, case, built, grid)
     }
 }
+
+/// The single compare variant `only` of `backend`, or the error naming what exists (every
+/// `build_*` of a one-variant backend starts with it).
+pub(crate) fn only_variant(
+    backend: &str,
+    variant: &str,
+    only: &str,
+) -> Result<(), cleave_testkit::compare::BuildError> {
+    if variant == only {
+        Ok(())
+    } else {
+        Err(cleave_testkit::compare::BuildError(format!("{backend} has no variant {variant:?} (only {only:?})")))
+    }
+}

@@ -89,9 +89,7 @@ impl CompareBackend for VirtualNodeBackend {
         grid: &BoxGrid,
         dirichlet: &DirichletSpec,
     ) -> Result<BuiltProblem, BuildError> {
-        if variant != "linear-tet" {
-            return Err(BuildError(format!("virtualnode has no variant {variant:?} (only \"linear-tet\")")));
-        }
+        crate::only_variant("virtualnode", variant, "linear-tet")?;
         let mesh = VirtualNodeMesh::from_box(grid.origin, grid.max_corner(), grid.h, *material)
             .map_err(|e| BuildError(e.to_string()))?;
         let elements = mesh.num_duplicates();
@@ -119,9 +117,7 @@ impl CompareBackend for VirtualNodeBackend {
         dirichlet: &DirichletSpec,
         surface: &CutSurface,
     ) -> Result<CutProblem, CutError> {
-        if variant != "linear-tet" {
-            return Err(CutError::Build(format!("virtualnode has no variant {variant:?} (only \"linear-tet\")")));
-        }
+        crate::only_variant("virtualnode", variant, "linear-tet").map_err(|e| CutError::Build(e.0))?;
         let mut mesh = VirtualNodeMesh::from_box(grid.origin, grid.max_corner(), grid.h, *material)
             .map_err(|e| CutError::Build(e.to_string()))?;
         let change = mesh.cut(surface).map_err(|e| CutError::Build(e.to_string()))?;
@@ -150,9 +146,7 @@ impl CompareBackend for VirtualNodeBackend {
         if case != ExtremeCase::Sliver {
             return Ok(None);
         }
-        if variant != "linear-tet" {
-            return Err(BuildError(format!("virtualnode has no variant {variant:?} (only \"linear-tet\")")));
-        }
+        crate::only_variant("virtualnode", variant, "linear-tet")?;
         let mesh = sliver_beam(material, grid).map_err(BuildError)?;
         let elements = mesh.num_duplicates();
         let prescribed = carved_dirichlet(&mesh, dirichlet);

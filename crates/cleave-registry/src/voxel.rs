@@ -35,9 +35,7 @@ impl CompareBackend for VoxelBackend {
         grid: &BoxGrid,
         dirichlet: &DirichletSpec,
     ) -> Result<BuiltProblem, BuildError> {
-        if variant != "trilinear" {
-            return Err(BuildError(format!("voxel has no variant {variant:?} (only \"trilinear\")")));
-        }
+        crate::only_variant("voxel", variant, "trilinear")?;
         let mesh =
             VoxelMesh::from_box(*material, grid.origin, grid.h, grid.dims).map_err(|e| BuildError(e.to_string()))?;
         let elements = mesh.num_cubes();
@@ -56,9 +54,7 @@ impl CompareBackend for VoxelBackend {
         dirichlet: &DirichletSpec,
         surface: &CutSurface,
     ) -> Result<CutProblem, CutError> {
-        if variant != "trilinear" {
-            return Err(CutError::Build(format!("voxel has no variant {variant:?} (only \"trilinear\")")));
-        }
+        crate::only_variant("voxel", variant, "trilinear").map_err(|e| CutError::Build(e.0))?;
         let mesh = VoxelMesh::from_box(*material, grid.origin, grid.h, grid.dims)
             .map_err(|e| CutError::Build(e.to_string()))?;
         let faces = covered_faces(&mesh, surface)?;

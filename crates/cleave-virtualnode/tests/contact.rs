@@ -212,6 +212,38 @@ fn slide(friction: Real) -> Vec<(Real, Real)> {
     track
 }
 
+/// The energy of the state right after a cut, asked for before any step: the ground contacts
+/// are found then for the new surface (a topology change no longer finds them up front), so
+/// the penalty energy is exactly Σ ½ k min(d, 0)² over the new surface points, computed here
+/// from their positions, and the other energies are those before the cut (the remap is exact).
+#[test]
+fn energy_right_after_a_cut_counts_the_new_surface_on_the_ground() {
+    let material = Material::new(1e5, 0.3, 1000.0).unwrap();
+    let mut mesh = VirtualNodeMesh::from_box(Point3::origin(), Point3::new(0.1, 0.1, 0.1), 0.05, material).unwrap();
+    let stiffness = 2e4;
+    let constraints = contact_constraints(&mut mesh, vec![ground(stiffness, 0.5)], None);
+    let mut integrator = Integrator::new(&mesh, settings(Vector3::new(0.0, 0.0, -9.81)), constraints).unwrap();
+    for _ in 0..30 {
+        integrator.step(&mesh).unwrap();
+    }
+    let before = integrator.energies(&mesh);
+    let change = mesh.cut(&CutSurface::Plane { point: Point3::new(0.0512, 0.0, 0.0), normal: Vector3::x() }).unwrap();
+    let constraints = contact_constraints(&mut mesh, vec![ground(stiffness, 0.5)], None);
+    let points = constraints.contact_points.clone().unwrap();
+    integrator.apply_topology_change(&mesh, &change, constraints).unwrap();
+    let after = integrator.energies(&mesh);
+    let x = integrator.positions();
+    let expected: Real = (0..points.len()).map(|i| 0.5 * stiffness * points.point(x, i).z.min(0.0).powi(2)).sum();
+    println!(
+        "penalty energy {:.6e} J before the cut, {:.6e} J after it ({:.6e} J summed over the new surface's points)",
+        before.penalty_energy, after.penalty_energy, expected
+    );
+    assert!(expected > 0.0, "the block must sit in the ground's penalty layer");
+    assert!((after.penalty_energy - expected).abs() < 1e-12 * expected, "{} vs {expected}", after.penalty_energy);
+    let rest_of = |e: &cleave_integrator::StepReport| e.kinetic_energy + e.elastic_energy + e.gravitational_energy;
+    assert!((rest_of(&after) - rest_of(&before)).abs() < 1e-12 * rest_of(&before).abs().max(1e-6));
+}
+
 #[test]
 fn a_block_on_a_slope_sticks_or_slides_as_coulomb_says() {
     let g = 9.81;
