@@ -929,6 +929,31 @@ impl ContactSet {
         added
     }
 
+    /// Visits the couple of every pair between two sides of the body's surface in the step just
+    /// solved (velocities `v`, not yet applied to `x`), with a node of each side: a penalty pair
+    /// acts on two points that the penetration (or, for a pair the prediction activated, the
+    /// approach) holds apart along the normal, so its tangential (friction) part is a couple
+    /// `r × f` with `r = p − c` the row's value at `x`, which changes the angular momentum by
+    /// `h r × f` where the continuum's touching surfaces have none. `visit(a, b, h r × f)`;
+    /// docs/math/contact.md §5.
+    pub fn visit_pair_couples(
+        &self,
+        points: &Embedding,
+        x: &[Real],
+        v: &[Real],
+        h: Real,
+        mut visit: impl FnMut(u32, u32, Vector3<Real>),
+    ) {
+        for c in self.contacts.iter().filter(|c| c.row.len > 1) {
+            let force = c.force - c.matrix * row_value(points, c, v) / h;
+            let couple = row_value(points, c, x).cross(&force) * h;
+            let side = |entry: usize| points.row(c.row.points[entry] as usize).0.first().copied();
+            if let (Some(a), Some(b)) = (side(0), side(c.row.len as usize - 1)) {
+                visit(a, b, couple);
+            }
+        }
+    }
+
     /// Counts per kind and the deepest penetration.
     pub fn stats(&self) -> ContactStats {
         let mut stats = ContactStats::default();

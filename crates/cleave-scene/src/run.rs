@@ -411,6 +411,7 @@ impl Simulation {
         settings.gravity = Vector3::from(scene.gravity);
         settings.rayleigh_alpha = material.rayleigh_alpha;
         settings.rayleigh_beta = material.rayleigh_beta;
+        settings.conserve_angular_momentum = scene.conserve_angular_momentum;
         settings.solver = match scene.solver {
             SolverSpec::Cholesky => Solver::Cholesky,
             SolverSpec::ConjugateGradient { tolerance, max_iterations, assembled } => {

@@ -34,6 +34,10 @@ pub struct Scene {
     /// Linear solver; default CG.
     #[serde(default)]
     pub solver: SolverSpec,
+    /// Remove the angular momentum the step's own elastic forces and contact couples add to a
+    /// free piece (`Settings::conserve_angular_momentum`); default false.
+    #[serde(default)]
+    pub conserve_angular_momentum: bool,
     /// Pinned regions.
     #[serde(default)]
     pub pins: Vec<PinSpec>,
