@@ -654,14 +654,16 @@ impl Integrator {
         if let Some(dof) = self.v.iter().position(|v| !v.is_finite()) {
             return Err(StepErrorKind::NotFinite { dof });
         }
+        if let Some(points) = self.constraints.contact_points.as_ref().filter(|_| self.constraints.has_contact()) {
+            self.work.contacts.store_normal_forces(points, &self.v, h);
+        }
         // Internal forces conserve angular momentum (docs/math/corotated-integrator.md,
-        // "Angular momentum"): elastic torque and contact couples, from the solved v⁺.
+        // "Angular momentum"): elastic torque and contact couples, from the solved v⁺ (after
+        // the normal forces friction lags are stored from it).
         if !self.free_pieces.is_empty() {
             let kv = &mut self.work.scratch;
             kv.iter_mut().for_each(|k| *k = 0.0);
             discretization.add_stiffness_action(&self.rotations, &self.v, 1.0, kv);
-        }
-        if !self.free_pieces.is_empty() {
             if self.constraints.surface_contact.is_some()
                 && let Some(points) = &self.constraints.contact_points
             {
@@ -673,9 +675,6 @@ impl Integrator {
             let beta = self.settings.rayleigh_beta;
             let kv = &self.work.scratch;
             self.free_pieces.cancel_elastic_torque(&self.x, mass.diagonal(), kv, h, beta, &mut self.v);
-        }
-        if let Some(points) = self.constraints.contact_points.as_ref().filter(|_| self.constraints.has_contact()) {
-            self.work.contacts.store_normal_forces(points, &self.v, h);
         }
         self.x.par_iter_mut().zip(&self.v).for_each(|(x, v)| *x += h * v);
         let rest = discretization.rest_dofs();

@@ -12,6 +12,9 @@ pub(crate) struct FreePieces {
     piece_of_node: Vec<u32>,
     /// Number of free pieces.
     count: usize,
+    /// Per free piece, one of its nodes: moments are taken about its position, which keeps
+    /// them accurate for a small piece far from the origin.
+    reference: Vec<u32>,
     /// Per node, its coefficient in the constant field 1 (`Discretization::add_translation`):
     /// 1 for nodal bases, which sum to one; for DG's modal bases only the constant mode's.
     translation: Vec<Real>,
@@ -28,15 +31,21 @@ pub(crate) struct FreePieces {
 /// one step's correction makes.
 const CORRECTION_LIMIT: Real = 1e-2;
 
+/// Smallest ratio of a piece's smallest to largest principal moment of inertia that the
+/// correction turns.
+const INERTIA_CONDITION: Real = 1e-6;
+
 #[derive(Clone, Copy, Debug, Default)]
 struct PieceSums {
     mass: Real,
     first: Vector3<Real>,
     second: Matrix3<Real>,
     stiffness_torque: Vector3<Real>,
-    /// Centre of mass, inertia about it, and the angular momentum to cancel.
+    /// Centre of mass (relative to the reference node), inertia about it, whether the piece
+    /// can be turned, and the angular momentum to cancel.
     centre: Vector3<Real>,
     inertia: Matrix3<Real>,
+    turns: bool,
     added: Vector3<Real>,
     /// Angular momentum about the origin and linear momentum of the solved `v⁺`.
     momentum: Vector3<Real>,
@@ -80,6 +89,7 @@ impl FreePieces {
         let mut index_of_root = vec![u32::MAX; nodes];
         let mut count = 0;
         let mut piece_of_node = vec![u32::MAX; nodes];
+        let mut reference = Vec::new();
         for node in 0..nodes {
             let r = root(&mut parent, node as u32) as usize;
             if fixed_root[r] {
@@ -87,6 +97,7 @@ impl FreePieces {
             }
             if index_of_root[r] == u32::MAX {
                 index_of_root[r] = count as u32;
+                reference.push(node as u32);
                 count += 1;
             }
             piece_of_node[node] = index_of_root[r];
@@ -97,6 +108,7 @@ impl FreePieces {
         Self {
             piece_of_node,
             count,
+            reference,
             translation,
             start_torque: vec![Vector3::zeros(); count],
             couples: Vec::new(),
@@ -104,18 +116,27 @@ impl FreePieces {
         }
     }
 
+    /// Position of DOF `node` relative to its piece's reference node, `x_k − t_k x_ref` (a shift
+    /// of the field by `−x_ref`; for nodal bases `x_k − x_ref`).
+    fn relative(&self, x: &[Real], node: usize, piece: u32) -> Vector3<Real> {
+        let r = self.reference[piece as usize] as usize;
+        let t = self.translation[node];
+        Vector3::from_fn(|a, _| x[3 * node + a] - t * x[3 * r + a])
+    }
+
     /// Whether there is any free piece to correct.
     pub(crate) fn is_empty(&self) -> bool {
         self.count == 0
     }
 
-    /// Records the torque about `x` of the elastic force `f_el(x)` of every free piece.
+    /// Records the torque of the elastic force `f_el(x)` of every free piece (about its
+    /// reference node; internal forces sum to zero, so the point does not matter).
     pub(crate) fn record_start_torque(&mut self, x: &[Real], elastic_force: impl Fn(usize) -> Vector3<Real>) {
         self.start_torque.iter_mut().for_each(|t| *t = Vector3::zeros());
         self.couples.clear();
         for (node, &piece) in self.piece_of_node.iter().enumerate() {
             if piece != u32::MAX {
-                let p = Vector3::new(x[3 * node], x[3 * node + 1], x[3 * node + 2]);
+                let p = self.relative(x, node, piece);
                 self.start_torque[piece as usize] += p.cross(&elastic_force(node));
             }
         }
@@ -136,9 +157,9 @@ impl FreePieces {
     /// elastic and stiffness-damping force `f_el(x) − (h + β) K_R v⁺` added in the step:
     /// `h Σ x × (f_el(x) − (h + β) K_R v⁺)`. `stiffness_times_v` is `K_R v⁺`; `mass` the lumped
     /// diagonal. The couples booked by [`Self::add_pair_couple`] are cancelled with it, each
-    /// shared between its two pieces as `τ_a = I_a (I_a + I_b)⁻¹ τ` (the share that changes the
-    /// kinetic energy least: a sliver touching a large piece gets almost none), all of it to the
-    /// free one when the other is held. Linear momentum is unchanged (the rotations are about
+    /// shared between its two pieces as `τ_a = I_a (I_a + I_b)⁻¹ τ` (the share with the smallest
+    /// rigid-rotation energy `½ Σ δωᵀ I δω`: a sliver touching a large piece gets almost none),
+    /// all of it to the one that can turn when the other is held or cannot. Linear momentum is unchanged (the rotations are about
     /// the centres of mass).
     pub(crate) fn cancel_elastic_torque(
         &mut self,
@@ -154,8 +175,8 @@ impl FreePieces {
             if piece == u32::MAX {
                 continue;
             }
+            let p = self.relative(x, node, piece);
             let s = &mut self.sums[piece as usize];
-            let p = Vector3::new(x[3 * node], x[3 * node + 1], x[3 * node + 2]);
             let m = mass[3 * node];
             let t = self.translation[node];
             s.mass += m * t * t;
@@ -173,6 +194,7 @@ impl FreePieces {
         for (s, start_torque) in self.sums.iter_mut().zip(&self.start_torque) {
             s.turn = None;
             s.added = h * (start_torque - (h + beta) * s.stiffness_torque);
+            s.turns = false;
             if s.mass > 0.0 {
                 // The inertia about the centre of mass, `Σ m (|x|² I − x xᵀ) − m (|c|² I − c cᵀ)`
                 // (over coefficients for modal bases: `∫ ρ x × v = Σ m_k x_k × v_k` for
@@ -182,13 +204,18 @@ impl FreePieces {
                 s.inertia =
                     about_origin - (Matrix3::identity() * centre.norm_squared() - centre * centre.transpose()) * s.mass;
                 s.centre = centre;
+                // A piece of one point, of collinear points or a needle cannot (or should not)
+                // be turned about its weak axis: the spin for a given change of angular
+                // momentum grows without bound.
+                let eigen = s.inertia.symmetric_eigenvalues();
+                s.turns = eigen.min() > INERTIA_CONDITION * eigen.max() && eigen.min().is_finite();
             }
         }
         for &(a, b, couple) in &self.couples {
-            match (self.sums.get(a as usize).map(|s| s.inertia), self.sums.get(b as usize).map(|s| s.inertia)) {
+            let inertia = |p: u32| self.sums.get(p as usize).filter(|s| s.turns).map(|s| s.inertia);
+            match (inertia(a), inertia(b)) {
                 (Some(ia), Some(ib)) if a != b => {
-                    let Some(inverse) = (ia + ib).try_inverse() else { continue };
-                    let share = ia * (inverse * couple);
+                    let share = (ia + ib).try_inverse().map_or(couple * 0.5, |inverse| ia * (inverse * couple));
                     self.sums[a as usize].added += share;
                     self.sums[b as usize].added += couple - share;
                 }
@@ -197,10 +224,9 @@ impl FreePieces {
                 (None, None) => {}
             }
         }
-        for s in &mut self.sums {
-            // A piece of one point or of collinear points cannot turn about the missing axes.
+        for s in self.sums.iter_mut().filter(|s| s.turns) {
             let Some(spin) = s.inertia.try_inverse().map(|inverse| inverse * -s.added) else { continue };
-            if s.mass <= 0.0 || !spin.iter().all(|c| c.is_finite()) {
+            if !spin.iter().all(|c| c.is_finite()) {
                 continue;
             }
             // The correction is explicit: it gives back as rigid rotation what the step's
@@ -219,8 +245,9 @@ impl FreePieces {
                 continue;
             }
             if let Some((centre, spin)) = self.sums[piece as usize].turn {
-                let p = Vector3::new(x[3 * node], x[3 * node + 1], x[3 * node + 2]);
-                // The field `δω × (x − c)`: `δω × x` minus the constant `δω × c`.
+                let p = self.relative(x, node, piece);
+                // The field `δω × (x − c)`: `δω × x` minus the constant `δω × c` (both relative
+                // to the reference node).
                 let dv = spin.cross(&p) - spin.cross(&centre) * self.translation[node];
                 for a in 0..3 {
                     v[3 * node + a] += dv[a];
