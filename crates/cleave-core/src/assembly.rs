@@ -31,19 +31,46 @@ impl AssemblyPattern {
                 pairs[j as usize].extend_from_slice(group);
             }
         }
-        for (j, list) in pairs.iter_mut().enumerate() {
+        pairs.par_iter_mut().enumerate().for_each(|(j, list)| {
             list.push(j as u32);
             list.sort_unstable();
             list.dedup();
+        });
+        Self::from_neighbour_lists(num_nodes, pairs.iter().map(Vec::as_slice))
+    }
+
+    /// This pattern with the couplings of `groups` added (pattern growth: only the nodes the
+    /// groups name are sorted again, the rest is copied).
+    pub fn with_groups<'a>(&self, groups: impl Iterator<Item = &'a [u32]>) -> Self {
+        let num_nodes = self.num_nodes;
+        let mut added: Vec<Vec<u32>> = vec![Vec::new(); num_nodes];
+        for group in groups {
+            for &j in group {
+                assert!((j as usize) < num_nodes, "node {j} out of range 0..{num_nodes}");
+                added[j as usize].extend_from_slice(group);
+            }
         }
+        added.par_iter_mut().enumerate().filter(|(_, list)| !list.is_empty()).for_each(|(j, list)| {
+            list.extend_from_slice(self.neighbours(j as u32));
+            list.sort_unstable();
+            list.dedup();
+        });
+        let lists = (0..num_nodes).map(|j| match added[j].is_empty() {
+            true => self.neighbours(j as u32),
+            false => added[j].as_slice(),
+        });
+        Self::from_neighbour_lists(num_nodes, lists)
+    }
+
+    /// The pattern of sorted neighbour lists (each holding its own node), one per node.
+    fn from_neighbour_lists<'a>(num_nodes: usize, lists: impl Iterator<Item = &'a [u32]>) -> Self {
         let mut neighbour_offsets = Vec::with_capacity(num_nodes + 1);
         neighbour_offsets.push(0);
         let mut neighbours = Vec::new();
-        for list in &pairs {
+        for list in lists {
             neighbours.extend_from_slice(list);
             neighbour_offsets.push(neighbours.len());
         }
-        drop(pairs);
         let nnz = 9 * neighbours.len();
         let mut col_ptr = Vec::with_capacity(3 * num_nodes + 1);
         let mut row_idx = Vec::with_capacity(nnz);
@@ -172,5 +199,19 @@ mod tests {
         let pos = p.position(p.rank(2, 1).unwrap(), 1, 1, 2);
         assert_eq!(p.row_idx()[pos], 3 * 2 + 1);
         assert!(pos >= p.col_ptr()[3 + 2] && pos < p.col_ptr()[3 + 3]);
+    }
+
+    #[test]
+    fn a_grown_pattern_equals_the_pattern_built_with_all_groups() {
+        let first: Vec<Vec<u32>> = vec![vec![0, 1], vec![1, 2], vec![4, 5, 6]];
+        let later: Vec<Vec<u32>> = vec![vec![2, 5], vec![0, 6, 3], vec![1, 2]];
+        let grown = AssemblyPattern::from_groups(8, first.iter().map(Vec::as_slice))
+            .with_groups(later.iter().map(Vec::as_slice));
+        let whole = AssemblyPattern::from_groups(8, first.iter().chain(&later).map(Vec::as_slice));
+        assert_eq!(grown.col_ptr(), whole.col_ptr());
+        assert_eq!(grown.row_idx(), whole.row_idx());
+        assert_eq!(grown.rank(5, 2), Some(2));
+        assert_eq!(grown.rank(7, 7), Some(0));
+        assert_eq!(grown.rank(3, 1), None);
     }
 }

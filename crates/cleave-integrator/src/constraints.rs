@@ -207,6 +207,10 @@ impl Constraints {
                 }
             }
         }
+        // Most surface triangles and contact points of one element name the same nodes: each
+        // group once keeps the pattern's build from sorting the same pairs many times over.
+        groups.sort_unstable();
+        groups.dedup();
         groups
     }
 }

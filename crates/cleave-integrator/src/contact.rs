@@ -20,7 +20,7 @@
 use crate::constraints::{Constraints, MeshCollider};
 use cleave_core::{AssemblyPattern, Embedding, Matrix3, Point3, Real, Vector3};
 use cleave_geometry::{closest_parameters_of_lines, closest_point_on_triangle};
-use parry3d_f64::bounding_volume::Aabb;
+use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
 use parry3d_f64::math::Vector as ParryVector;
 use parry3d_f64::partitioning::{Bvh, BvhBuildStrategy, BvhWorkspace};
 use rayon::prelude::*;
@@ -157,6 +157,11 @@ pub(crate) struct ContactSet {
     component_cut_triangles: Vec<Vec<u32>>,
     bvh_all: Vec<Bvh>,
     bvh_cut: Vec<Bvh>,
+    /// This step's root box of every `bvh_all` and `bvh_edges` tree: a query misses a piece
+    /// whose root it misses, without setting up a traversal (most pieces are far from most
+    /// points).
+    roots_all: Vec<Aabb>,
+    roots_edges: Vec<Aabb>,
     bvh_workspace: BvhWorkspace,
     per_point: Vec<Option<Contact>>,
     /// Per surface point, the pair it found this step but did not activate (not predicted to
@@ -634,6 +639,8 @@ impl ContactSet {
                 bvh.refit(&mut self.bvh_workspace);
             }
         }
+        self.roots_all.clear();
+        self.roots_all.extend(self.bvh_all.iter().map(Bvh::root_aabb));
         let mut per_point = std::mem::take(&mut self.per_point);
         let mut near = std::mem::take(&mut self.near);
         near.clear();
@@ -711,10 +718,11 @@ impl ContactSet {
             // piece's rim "penetrate" a face beyond the rim by up to the reach (most of the
             // deep contacts after a cut through touching pieces: docs/math/contact.md §5).
             for b in 0..this.bvh_all.len() {
-                if b == own {
+                let query = query(b);
+                if b == own || !this.roots_all[b].intersects(&query) {
                     continue;
                 }
-                let (query, list) = (query(b), &this.component_triangles[b]);
+                let list = &this.component_triangles[b];
                 let mut nearest: Option<(Real, usize, Point3<Real>, [Real; 3])> = None;
                 for t in this.bvh_all[b].intersect_aabb(&query).map(|leaf| list[leaf as usize]) {
                     let corners = triangles[t as usize].map(|k| positions[k as usize]);
@@ -813,6 +821,8 @@ impl ContactSet {
                 bvh.refit(&mut self.bvh_workspace);
             }
         }
+        self.roots_edges.clear();
+        self.roots_edges.extend(self.bvh_edges.iter().map(Bvh::root_aabb));
         let mut per_edge = std::mem::take(&mut self.per_edge);
         per_edge.clear();
         per_edge.resize(self.feature_edges.len(), None);
@@ -841,6 +851,9 @@ impl ContactSet {
                 let motion = Vector3::repeat(h * (speeds[0] - w).norm().max((speeds[1] - w).norm()));
                 let query =
                     Aabb::new(to_parry(&(ends[0].inf(&ends[1]) - motion)), to_parry(&(ends[0].sup(&ends[1]) + motion)));
+                if !this.roots_edges[b].intersects(&query) {
+                    continue;
+                }
                 for g in bvh.intersect_aabb(&query).map(|leaf| list[leaf as usize] as usize) {
                     if this.is_feature[g] && g < e {
                         continue;

@@ -190,8 +190,6 @@ pub struct Integrator {
     two_level: Option<TwoLevel>,
     work: Workspace,
     last_inverted: usize,
-    /// Node groups of surface contacts seen in this epoch, added to the pattern.
-    contact_couplings: Vec<Vec<u32>>,
     /// Times the pattern grew for new surface contacts (whole run).
     pattern_growths: u64,
     /// Whether the contacts were found for an earlier state (set by a topology change).
@@ -225,7 +223,6 @@ impl Integrator {
             two_level: None,
             work: Workspace::default(),
             last_inverted: 0,
-            contact_couplings: Vec::new(),
             pattern_growths: 0,
             contacts_stale: false,
             free_pieces: FreePieces::default(),
@@ -262,7 +259,6 @@ impl Integrator {
             self.pinned[d] = true;
         }
         self.check_embeddings(discretization.num_nodes())?;
-        self.contact_couplings.clear();
         let rest = discretization.rest_dofs();
         let (mut lo, mut hi) = (Point3::from([Real::MAX; 3]), Point3::from([Real::MIN; 3]));
         for p in rest.chunks_exact(3) {
@@ -277,12 +273,7 @@ impl Integrator {
             Solver::ConjugateGradient { assembled, .. } => assembled && discretization.wants_assembly(),
         };
         self.system = if needs_assembly {
-            Some(AssembledSystem::new(
-                discretization,
-                &self.constraints,
-                &self.contact_couplings,
-                self.settings.solver == Solver::Cholesky,
-            )?)
+            Some(AssembledSystem::new(discretization, &self.constraints, self.settings.solver == Solver::Cholesky)?)
         } else {
             None
         };
@@ -544,13 +535,7 @@ impl Integrator {
                 let missing = contact::missing_couplings(points, &self.work.contacts, &system.pattern);
                 if !missing.is_empty() {
                     let clock = Instant::now();
-                    self.contact_couplings.extend(missing);
-                    self.system = Some(AssembledSystem::new(
-                        discretization,
-                        &self.constraints,
-                        &self.contact_couplings,
-                        self.settings.solver == Solver::Cholesky,
-                    )?);
+                    self.system = Some(system.grown(&missing, discretization, &self.constraints)?);
                     self.pattern_growths += 1;
                     seconds.pattern += clock.elapsed().as_secs_f64();
                 }

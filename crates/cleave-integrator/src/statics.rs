@@ -41,7 +41,7 @@ pub fn solve_static(
     }
     let clock = Instant::now();
     let constraints = Constraints { pinned_dofs: prescribed.iter().map(|&(d, _)| d).collect(), ..Default::default() };
-    let mut system = AssembledSystem::new(discretization, &constraints, &[], true)?;
+    let mut system = AssembledSystem::new(discretization, &constraints, true)?;
     let seconds_setup = clock.elapsed().as_secs_f64();
 
     let clock = Instant::now();

@@ -65,16 +65,36 @@ impl AssembledSystem {
     pub(crate) fn new(
         discretization: &dyn Discretization,
         constraints: &Constraints,
-        contact_couplings: &[Vec<u32>],
         with_cholesky: bool,
     ) -> Result<Self, StepErrorKind> {
-        let blocks = discretization.blocks();
         let coupling = constraints.coupling_groups();
         let pattern = AssemblyPattern::from_groups(
             discretization.num_nodes(),
-            blocks.node_groups().chain(coupling.iter().chain(contact_couplings).map(Vec::as_slice)),
+            discretization.blocks().node_groups().chain(coupling.iter().map(Vec::as_slice)),
         );
-        let block_ranks = BlockRanks::new(blocks, &pattern);
+        Self::on_pattern(pattern, discretization, constraints, with_cholesky)
+    }
+
+    /// The system of the same epoch on this pattern grown by `couplings` (surface contacts
+    /// between nodes it did not couple): a new symbolic factorization, but the pattern is only
+    /// merged, not built again from every element and surface triangle.
+    pub(crate) fn grown(
+        &self,
+        couplings: &[Vec<u32>],
+        discretization: &dyn Discretization,
+        constraints: &Constraints,
+    ) -> Result<Self, StepErrorKind> {
+        let pattern = self.pattern.with_groups(couplings.iter().map(Vec::as_slice));
+        Self::on_pattern(pattern, discretization, constraints, self.cholesky.is_some())
+    }
+
+    fn on_pattern(
+        pattern: AssemblyPattern,
+        discretization: &dyn Discretization,
+        constraints: &Constraints,
+        with_cholesky: bool,
+    ) -> Result<Self, StepErrorKind> {
+        let block_ranks = BlockRanks::new(discretization.blocks(), &pattern);
         let pin_ranks =
             constraints.penalty_pins.as_ref().map_or_else(RowRanks::default, |p| RowRanks::new(&p.points, &pattern));
         let dim = pattern.dim();

@@ -28,11 +28,11 @@
 //! opposite outward sides, neither covered, whose projections overlap with an area above
 //! [`OVERLAP_TOLERANCE`] times the tetrahedron's squared edge (floating point).
 
+use crate::FastMap;
 use crate::predicates::{
     convex_overlap_area, dominant_axis, largest_component, project, side3, triangle_is_degenerate,
 };
 use nalgebra::{Point2, Point3, Vector3};
-use std::collections::HashMap;
 
 /// Relative area (of the squared edge length of the tetrahedron) below which two coplanar face
 /// pieces are not considered to overlap.
@@ -166,7 +166,7 @@ pub struct Arrangement {
     pub planes: Vec<Plane>,
     /// The cells.
     pub cells: Vec<Cell>,
-    edge_points: HashMap<(u32, u32, u32), u32>,
+    edge_points: FastMap<(u32, u32, u32), u32>,
     scale2: f64,
 }
 
@@ -238,7 +238,7 @@ impl Arrangement {
             .flat_map(|i| (0..4).map(move |j| (i, j)))
             .map(|(i, j)| (corners[i] - corners[j]).norm_squared())
             .fold(0.0, f64::max);
-        Self { vertices, planes, cells: vec![Cell { faces }], edge_points: HashMap::new(), scale2 }
+        Self { vertices, planes, cells: vec![Cell { faces }], edge_points: FastMap::default(), scale2 }
     }
 
     /// The corners of the tetrahedron.
@@ -783,7 +783,7 @@ impl Arrangement {
             i
         }
         // Open interior faces grouped by plane.
-        let mut groups: HashMap<u32, Vec<(usize, usize)>> = HashMap::new();
+        let mut groups: FastMap<u32, Vec<(usize, usize)>> = FastMap::default();
         for (c, cell) in self.cells.iter().enumerate() {
             for (f, face) in cell.faces.iter().enumerate() {
                 if face.plane >= 4 && face.cover == Cover::Open {
@@ -832,7 +832,7 @@ impl Arrangement {
                 }
             }
         }
-        let mut index: HashMap<usize, usize> = HashMap::new();
+        let mut index: FastMap<usize, usize> = FastMap::default();
         let mut regions: Vec<(Vec<usize>, f64)> = Vec::new();
         for c in 0..n {
             let r = find(&mut parent, c);
@@ -849,7 +849,7 @@ impl Arrangement {
 
     /// A new arrangement holding only `cells` (vertices compacted; the corners keep ids `0..4`).
     pub fn restricted(&self, cells: &[usize]) -> Self {
-        let mut map: HashMap<u32, u32> = HashMap::new();
+        let mut map: FastMap<u32, u32> = FastMap::default();
         let mut vertices: Vec<Vertex> = self.vertices[..4].to_vec();
         for i in 0..4u32 {
             map.insert(i, i);
@@ -926,7 +926,7 @@ impl Arrangement {
     /// tetrahedron's size (convexity). Returns what is wrong.
     pub fn check_cell(&self, c: usize) -> Result<(), String> {
         let cell = &self.cells[c];
-        let mut edges: HashMap<(u32, u32), i32> = HashMap::new();
+        let mut edges: FastMap<(u32, u32), i32> = FastMap::default();
         for face in &cell.faces {
             let n = face.verts.len();
             if n < 3 {

@@ -28,5 +28,9 @@ pub mod predicates;
 pub mod surface;
 pub mod tet;
 
+/// Hash maps of the cut path: keys are indices and float bits, built and dropped per cut, so a
+/// fast fixed-seed hasher (deterministic iteration too) instead of SipHash.
+pub(crate) type FastMap<K, V> = std::collections::HashMap<K, V, foldhash::fast::FixedState>;
+
 pub use mesh::{CutStats, MassLumping, Piece, VirtualNodeError, VirtualNodeMesh, box_surface};
 pub use surface::{RenderSurface, SurfaceKind};

@@ -3,6 +3,7 @@
 //! materially contiguous faces; corotated linear tetrahedra scaled by region volume; cutting by
 //! triangle soups.
 
+use crate::FastMap;
 use crate::arrangement::{Arrangement, Cover, OVERLAP_TOLERANCE, TET_FACES};
 use crate::lattice::{BccLattice, LatticeTetCorners, number_nodes};
 use crate::predicates::{convex_overlap_area, largest_component, project};
@@ -15,7 +16,6 @@ use cleave_core::{
 use cleave_geometry::{InsideTester, TriangleMesh};
 use nalgebra::{DMatrix, Point2};
 use rayon::prelude::*;
-use std::collections::HashMap;
 
 /// Why a virtual node mesh could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -199,7 +199,7 @@ pub struct VirtualNodeMesh {
     lattice: BccLattice,
     lattice_nodes: Vec<[i32; 3]>,
     tets: Vec<LatticeTet>,
-    cube_tets: HashMap<[i32; 3], Vec<u32>>,
+    cube_tets: FastMap<[i32; 3], Vec<u32>>,
     rest_library: Vec<DMatrix<Real>>,
     duplicates: Vec<Duplicate>,
     dups_of_tet: Vec<Vec<u32>>,
@@ -266,7 +266,7 @@ impl VirtualNodeMesh {
             return Err(VirtualNodeError::TooLarge { h, cubes, limit: MAX_LATTICE_CUBES });
         }
         let all = lattice.tetrahedra();
-        let mut cube_tets: HashMap<[i32; 3], Vec<u32>> = HashMap::new();
+        let mut cube_tets: FastMap<[i32; 3], Vec<u32>> = FastMap::default();
         for (t, corners) in all.iter().enumerate() {
             for cube in BccLattice::cubes_of_tet(corners) {
                 cube_tets.entry(cube).or_default().push(t as u32);
@@ -332,9 +332,9 @@ impl VirtualNodeMesh {
         let kept_corners: Vec<LatticeTetCorners> = kept.iter().map(|&t| all[t]).collect();
         let (lattice_nodes, node_index) = number_nodes(&kept_corners);
         let mut rest_library = Vec::new();
-        let mut classes: HashMap<[[i32; 3]; 3], u32> = HashMap::new();
+        let mut classes: FastMap<[[i32; 3]; 3], u32> = FastMap::default();
         let mut tets = Vec::with_capacity(kept.len());
-        let mut cube_tets: HashMap<[i32; 3], Vec<u32>> = HashMap::new();
+        let mut cube_tets: FastMap<[i32; 3], Vec<u32>> = FastMap::default();
         for (k, corners) in kept_corners.iter().enumerate() {
             let points = corners.map(|d| lattice.position(d));
             // Degenerate only when h/2 is below the rounding of the coordinates.
@@ -351,7 +351,7 @@ impl VirtualNodeMesh {
             tets.push(LatticeTet { nodes: corners.map(|d| node_index[&d]), shape, rest_class, neighbors: [None; 4] });
         }
         // Face adjacency through sorted node triples.
-        let mut faces: HashMap<[u32; 3], (u32, u8)> = HashMap::new();
+        let mut faces: FastMap<[u32; 3], (u32, u8)> = FastMap::default();
         for t in 0..tets.len() {
             for (f, face) in TET_FACES.iter().enumerate() {
                 let mut key = face.map(|c| tets[t].nodes[c]);
@@ -513,7 +513,7 @@ impl VirtualNodeMesh {
                 uf.union(d.nodes[0] as usize, d.nodes[c] as usize);
             }
         }
-        let mut index: HashMap<usize, usize> = HashMap::new();
+        let mut index: FastMap<usize, usize> = FastMap::default();
         let mut pieces: Vec<Piece> = Vec::new();
         for (i, d) in self.duplicates.iter().enumerate() {
             let root = uf.find(d.nodes[0] as usize);
@@ -946,7 +946,7 @@ impl VirtualNodeMesh {
                 triangles[i]
             )));
         }
-        let mut tris_of_dup: HashMap<u32, Vec<u32>> = HashMap::new();
+        let mut tris_of_dup: FastMap<u32, Vec<u32>> = FastMap::default();
         for (i, tri) in triangles.iter().enumerate() {
             let tb = bounds(tri);
             for t in candidate_tets(&self.lattice, &self.cube_tets, tri) {
@@ -1006,7 +1006,7 @@ impl VirtualNodeMesh {
                 pattern_changed: false,
             });
         }
-        let mut replaced: HashMap<u32, Vec<Region>> =
+        let mut replaced: FastMap<u32, Vec<Region>> =
             results.into_iter().filter_map(|(d, r)| r.map(|r| (d, r))).collect();
         let old = std::mem::take(&mut self.duplicates);
         let old_nodes: Vec<[u32; 4]> = old.iter().map(|d| d.nodes).collect();
@@ -1076,7 +1076,7 @@ fn contiguous(
 
 /// Lattice tetrahedra (indices into the cube map's numbering) in cubes the triangle's bounding
 /// box touches, with one cube of margin.
-fn candidate_tets(lattice: &BccLattice, cube_tets: &HashMap<[i32; 3], Vec<u32>>, tri: &[Point3<Real>; 3]) -> Vec<u32> {
+fn candidate_tets(lattice: &BccLattice, cube_tets: &FastMap<[i32; 3], Vec<u32>>, tri: &[Point3<Real>; 3]) -> Vec<u32> {
     let (lo, hi) = bounds(tri);
     let (a, b) = (lattice.cube_of(&lo), lattice.cube_of(&hi));
     let clamp = |c: i32, axis: usize| c.clamp(-1, lattice.dims[axis]);

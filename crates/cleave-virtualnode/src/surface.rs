@@ -7,12 +7,12 @@
 //! that welding the vertices of a piece by rest position leaves no T-junction: the surface of
 //! every piece is then closed (every directed edge is matched by its reverse).
 
+use crate::FastMap;
 use crate::arrangement::Cover;
 use crate::mesh::VirtualNodeMesh;
 use cleave_core::{Embedding, Point3, Real, Vector3};
 use cleave_geometry::closest_point_on_triangle;
 use rayon::prelude::*;
-use std::collections::HashMap;
 
 /// Whether a render triangle lies on the original object surface or on a cut.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,6 +51,15 @@ enum Owner {
     Whole(u32),
 }
 
+/// A point of a polygon's loop with its embedding: the duplicate's nodes and weights, and the
+/// nodes it depends on (the welding key, see [`ZERO_WEIGHT`]).
+struct LoopPoint {
+    p: Point3<Real>,
+    nodes: [u32; 4],
+    weights: [Real; 4],
+    key: [u32; 4],
+}
+
 struct Polygon {
     owner: Owner,
     /// The duplicate the triangles are attributed to (for pieces).
@@ -73,13 +82,24 @@ type WeldedVertex = (Point3<Real>, [u32; 4], u32);
 struct Welder {
     tolerance: Real,
     cell: Real,
-    exact: HashMap<([u64; 3], [u32; 4]), u32>,
-    grid: HashMap<[i64; 3], Vec<WeldedVertex>>,
+    exact: FastMap<([u64; 3], [u32; 4]), u32>,
+    /// Per grid cell the last vertex made in it; `next` chains each vertex to the one made in
+    /// its cell before it (no list per cell: cells are tiny, most hold one vertex).
+    grid: FastMap<[i64; 3], u32>,
+    vertices: Vec<WeldedVertex>,
+    next: Vec<u32>,
 }
 
 impl Welder {
     fn new(tolerance: Real) -> Self {
-        Self { tolerance, cell: 1e3 * tolerance, exact: HashMap::new(), grid: HashMap::new() }
+        Self {
+            tolerance,
+            cell: 1e3 * tolerance,
+            exact: FastMap::default(),
+            grid: FastMap::default(),
+            vertices: Vec::new(),
+            next: Vec::new(),
+        }
     }
 
     fn find_or_insert(&mut self, p: Point3<Real>, nodes: [u32; 4], make: impl FnOnce() -> u32) -> u32 {
@@ -89,33 +109,31 @@ impl Welder {
         }
         let key: [i64; 3] = std::array::from_fn(|a| (p[a] / self.cell).floor() as i64);
         // Neighbouring cells only along axes where `p` lies within the tolerance of the border.
-        let offsets: [Vec<i64>; 3] = std::array::from_fn(|a| {
+        let range: [(i64, i64); 3] = std::array::from_fn(|a| {
             let local = p[a] - key[a] as Real * self.cell;
-            let mut o = vec![0];
-            if local < self.tolerance {
-                o.push(-1);
-            }
-            if local > self.cell - self.tolerance {
-                o.push(1);
-            }
-            o
+            (-i64::from(local < self.tolerance), i64::from(local > self.cell - self.tolerance))
         });
-        for &i in &offsets[0] {
-            for &j in &offsets[1] {
-                for &k in &offsets[2] {
-                    let Some(list) = self.grid.get(&[key[0] + i, key[1] + j, key[2] + k]) else { continue };
-                    if let Some(&(_, _, id)) =
-                        list.iter().find(|(q, n, _)| *n == nodes && (q - p).norm() <= self.tolerance)
-                    {
-                        self.exact.insert(exact_key, id);
-                        return id;
+        for i in range[0].0..=range[0].1 {
+            for j in range[1].0..=range[1].1 {
+                for k in range[2].0..=range[2].1 {
+                    let mut slot = self.grid.get(&[key[0] + i, key[1] + j, key[2] + k]).copied();
+                    while let Some(v) = slot.filter(|&v| v != u32::MAX) {
+                        let (q, n, id) = &self.vertices[v as usize];
+                        if *n == nodes && (q - p).norm() <= self.tolerance {
+                            let id = *id;
+                            self.exact.insert(exact_key, id);
+                            return id;
+                        }
+                        slot = Some(self.next[v as usize]);
                     }
                 }
             }
         }
         let id = make();
         self.exact.insert(exact_key, id);
-        self.grid.entry(key).or_default().push((p, nodes, id));
+        let slot = self.vertices.len() as u32;
+        self.next.push(self.grid.insert(key, slot).unwrap_or(u32::MAX));
+        self.vertices.push((p, nodes, id));
         id
     }
 }
@@ -123,7 +141,7 @@ impl Welder {
 /// A uniform grid of points for "which vertices lie near this segment" queries.
 struct PointGrid {
     cell: Real,
-    buckets: HashMap<[i64; 3], Vec<Point3<Real>>>,
+    buckets: FastMap<[i64; 3], Vec<Point3<Real>>>,
 }
 
 impl PointGrid {
@@ -276,10 +294,7 @@ impl VirtualNodeMesh {
             .map(|polygons| {
                 let mut surface = RenderSurface { embedding: Embedding::new(), ..Default::default() };
                 let mut welder = Welder::new(tolerance);
-                let mut found = Vec::new();
-                let mut loop_: Vec<Point3<Real>> = Vec::new();
-                let mut corner: Vec<bool> = Vec::new();
-                let mut grid = PointGrid { cell: 0.25 * h, buckets: HashMap::new() };
+                let mut grid = PointGrid { cell: 0.25 * h, buckets: FastMap::default() };
                 for polygon in polygons {
                     for p in &polygon.points {
                         let key = grid.key(p);
@@ -292,58 +307,75 @@ impl VirtualNodeMesh {
                     });
                     bucket.dedup();
                 }
-                for polygon in polygons {
-                    let mut vertex = |surface: &mut RenderSurface, p: Point3<Real>| -> u32 {
-                        let (d, weights) = match polygon.owner {
-                            Owner::Duplicate(d) => (d, self.duplicate_shape(d as usize).barycentric(&p)),
-                            Owner::Whole(i) => locate(i, &p),
-                        };
-                        let nodes = self.duplicate_nodes_of(d as usize);
-                        let mut key_nodes = [u32::MAX; 4];
-                        for c in 0..4 {
-                            if weights[c].abs() > ZERO_WEIGHT {
-                                key_nodes[c] = nodes[c];
-                            }
-                        }
-                        key_nodes.sort_unstable();
-                        welder.find_or_insert(p, key_nodes, || {
-                            surface.positions.push(p);
-                            surface.embedding.push_row(&nodes, &weights);
-                            surface.positions.len() as u32 - 1
-                        })
+                // The loop of every polygon (its corners and the points of other faces on its
+                // edges) with each point's embedding, in parallel; then welding in polygon order.
+                let embedded = |polygon: &Polygon, p: Point3<Real>| -> LoopPoint {
+                    let (d, weights) = match polygon.owner {
+                        Owner::Duplicate(d) => (d, self.duplicate_shape(d as usize).barycentric(&p)),
+                        Owner::Whole(i) => locate(i, &p),
                     };
-                    loop_.clear();
-                    corner.clear();
-                    let n = polygon.points.len();
-                    for i in 0..n {
-                        let (a, b) = (polygon.points[i], polygon.points[(i + 1) % n]);
-                        loop_.push(a);
-                        corner.push(true);
-                        grid.on_segment(&a, &b, tolerance, &mut found);
-                        loop_.extend(found.iter().map(|f| f.1));
-                        corner.extend(found.iter().map(|_| false));
+                    let nodes = self.duplicate_nodes_of(d as usize);
+                    let mut key = [u32::MAX; 4];
+                    for c in 0..4 {
+                        if weights[c].abs() > ZERO_WEIGHT {
+                            key[c] = nodes[c];
+                        }
                     }
-                    let ids: Vec<u32> = loop_.iter().map(|p| vertex(&mut surface, *p)).collect();
-                    // Faces are convex: fanned from a corner whose two edges carry no inserted
-                    // point (any other fan triangle has positive area), else from the vertex
-                    // average (inserted points lie on the edges).
-                    let m = ids.len();
-                    let apex = (0..m).find(|&a| corner[a] && corner[(a + 1) % m] && corner[(a + m - 1) % m]);
-                    let fan: Vec<[u32; 3]> = match apex {
-                        Some(a) => (1..m - 1).map(|i| [ids[a], ids[(a + i) % m], ids[(a + i + 1) % m]]).collect(),
-                        None => {
-                            let centre = Point3::from(
-                                loop_.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / loop_.len() as Real,
-                            );
-                            let c = vertex(&mut surface, centre);
-                            (0..m).map(|i| [c, ids[i], ids[(i + 1) % m]]).collect()
+                    key.sort_unstable();
+                    LoopPoint { p, nodes, weights, key }
+                };
+                let loops: Vec<(Vec<LoopPoint>, Option<usize>)> = polygons
+                    .par_iter()
+                    .map_init(Vec::new, |found, polygon| {
+                        let mut points = Vec::with_capacity(polygon.points.len() + 2);
+                        let mut corner = Vec::with_capacity(polygon.points.len() + 2);
+                        let n = polygon.points.len();
+                        for i in 0..n {
+                            let (a, b) = (polygon.points[i], polygon.points[(i + 1) % n]);
+                            points.push(embedded(polygon, a));
+                            corner.push(true);
+                            grid.on_segment(&a, &b, tolerance, found);
+                            points.extend(found.iter().map(|f| embedded(polygon, f.1)));
+                            corner.extend(found.iter().map(|_| false));
                         }
-                    };
-                    for triangle in fan {
+                        // Faces are convex: fanned from a corner whose two edges carry no
+                        // inserted point (any other fan triangle has positive area), else from
+                        // the vertex average (inserted points lie on the edges), appended last.
+                        let m = points.len();
+                        let apex = (0..m).find(|&a| corner[a] && corner[(a + 1) % m] && corner[(a + m - 1) % m]);
+                        if apex.is_none() {
+                            let centre = points.iter().fold(Vector3::zeros(), |s, q| s + q.p.coords) / m as Real;
+                            points.push(embedded(polygon, Point3::from(centre)));
+                        }
+                        (points, apex)
+                    })
+                    .collect();
+                let mut ids: Vec<u32> = Vec::new();
+                for (polygon, (points, apex)) in polygons.iter().zip(&loops) {
+                    ids.clear();
+                    for q in points {
+                        ids.push(welder.find_or_insert(q.p, q.key, || {
+                            surface.positions.push(q.p);
+                            surface.embedding.push_row(&q.nodes, &q.weights);
+                            surface.positions.len() as u32 - 1
+                        }));
+                    }
+                    let mut push = |triangle: [u32; 3]| {
                         if triangle[0] != triangle[1] && triangle[1] != triangle[2] && triangle[2] != triangle[0] {
                             surface.triangles.push(triangle);
                             surface.kinds.push(polygon.kind);
                             surface.duplicates.push(polygon.duplicate);
+                        }
+                    };
+                    match *apex {
+                        Some(a) => {
+                            let m = ids.len();
+                            (1..m - 1).for_each(|i| push([ids[a], ids[(a + i) % m], ids[(a + i + 1) % m]]));
+                        }
+                        None => {
+                            let (c, ring) = ids.split_last().expect("a polygon has corners");
+                            let m = ring.len();
+                            (0..m).for_each(|i| push([*c, ring[i], ring[(i + 1) % m]]));
                         }
                     }
                 }
