@@ -22,7 +22,7 @@ use cleave_core::{AssemblyPattern, Embedding, Matrix3, Point3, Real, Vector3};
 use cleave_geometry::{closest_parameters_of_lines, closest_point_on_triangle};
 use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
 use parry3d_f64::math::Vector as ParryVector;
-use parry3d_f64::partitioning::{Bvh, BvhBuildStrategy, BvhWorkspace};
+use parry3d_f64::partitioning::{Bvh, BvhBuildStrategy, BvhLeafUpdateStatus, BvhWorkspace};
 use rayon::prelude::*;
 
 /// Tangential slip speed below which friction is a viscous stick, `c_t = μ λ (2/ε − |v_t|/ε²)`
@@ -162,7 +162,7 @@ pub(crate) struct ContactSet {
     /// points).
     roots_all: Vec<Aabb>,
     roots_edges: Vec<Aabb>,
-    bvh_workspace: BvhWorkspace,
+    refit: RefitScratch,
     per_point: Vec<Option<Contact>>,
     /// Per surface point, the pair it found this step but did not activate (not predicted to
     /// close): [`ContactSet::activate_driven`] activates it when the step's solution closes it.
@@ -586,15 +586,18 @@ impl ContactSet {
         // of one smooth surface never push on its own nearby triangles.
         self.vertex_normals.clear();
         self.vertex_normals.resize(positions.len(), Vector3::zeros());
-        self.triangle_normals.clear();
-        for t in triangles {
-            let [a, b, c] = t.map(|i| positions[i as usize]);
-            let area_normal = (b - a).cross(&(c - a));
-            for &i in t {
-                self.vertex_normals[i as usize] += area_normal;
-            }
-            self.triangle_normals.push(area_normal.try_normalize(0.0).unwrap_or_else(Vector3::zeros));
-        }
+        let area_normal = |t: u32| {
+            let [a, b, c] = triangles[t as usize].map(|i| positions[i as usize]);
+            (b - a).cross(&(c - a))
+        };
+        (0..triangles.len() as u32)
+            .into_par_iter()
+            .map(|t| area_normal(t).try_normalize(0.0).unwrap_or_else(Vector3::zeros))
+            .collect_into_vec(&mut self.triangle_normals);
+        let (offsets, around) = (&self.vertex_triangle_offsets, &self.vertex_triangles);
+        self.vertex_normals.par_iter_mut().enumerate().for_each(|(i, normal)| {
+            *normal = around[offsets[i]..offsets[i + 1]].iter().fold(Vector3::zeros(), |s, &t| s + area_normal(t));
+        });
         // Motion is bounded relative to the mean velocity `w_b` of the piece searched:
         // |u_q − u_t| ≤ |u_q − w_b| + |u_t − w_b|, the second in the leaf boxes, the first in
         // the query. So a piece moving as a whole (falling, sliding) does not inflate its boxes
@@ -633,10 +636,7 @@ impl ContactSet {
             self.bvh_all = all;
         } else {
             for (bvh, list) in self.bvh_all.iter_mut().chain(self.bvh_cut.iter_mut()).zip(lists) {
-                for (leaf_index, &t) in list.iter().enumerate() {
-                    bvh.insert_or_update_partially(leaf(&triangles[t as usize]), leaf_index as u32, 0.0);
-                }
-                bvh.refit(&mut self.bvh_workspace);
+                self.refit.refit(bvh, list.len(), |k| leaf(&triangles[list[k] as usize]));
             }
         }
         self.roots_all.clear();
@@ -815,10 +815,7 @@ impl ContactSet {
                 .collect();
         } else {
             for (bvh, list) in self.bvh_edges.iter_mut().zip(&self.component_edges) {
-                for (leaf_index, &e) in list.iter().enumerate() {
-                    bvh.insert_or_update_partially(leaf(&self.edges[e as usize]), leaf_index as u32, 0.0);
-                }
-                bvh.refit(&mut self.bvh_workspace);
+                self.refit.refit(bvh, list.len(), |k| leaf(&self.edges[list[k] as usize]));
             }
         }
         self.roots_edges.clear();
@@ -1057,6 +1054,24 @@ pub(crate) fn missing_couplings(points: &Embedding, set: &ContactSet, pattern: &
         }
     }
     missing
+}
+
+/// Scratch of the per-step hierarchy refits, reused across steps.
+#[derive(Default)]
+struct RefitScratch {
+    updates: Vec<(Aabb, u32, Real)>,
+    statuses: Vec<BvhLeafUpdateStatus>,
+    workspace: BvhWorkspace,
+}
+
+impl RefitScratch {
+    /// Moves leaf `k` of `bvh` to `leaf(k)` for every one of its `count` leaves and refits it:
+    /// the boxes computed, written and merged upwards on the rayon pool.
+    fn refit(&mut self, bvh: &mut Bvh, count: usize, leaf: impl Fn(usize) -> Aabb + Sync) {
+        (0..count).into_par_iter().map(|k| (leaf(k), k as u32, 0.0)).collect_into_vec(&mut self.updates);
+        bvh.insert_or_update_batch_partially_parallel(&self.updates, &mut self.statuses);
+        bvh.refit_parallel(&mut self.workspace);
+    }
 }
 
 /// Adds `(w wᵀ) ⊗ P` of every contact to the assembled matrix, whose pattern holds every
