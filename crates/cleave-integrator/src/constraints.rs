@@ -192,25 +192,64 @@ impl Constraints {
     /// contact point row and, with surface contact, the nodes of every surface triangle's three
     /// vertex rows together (the triangle side of a contact row). The couplings between a
     /// point and a triangle change every step and are not in the pattern.
-    pub(crate) fn coupling_groups(&self) -> Vec<Vec<u32>> {
-        let mut groups: Vec<Vec<u32>> =
-            self.penalty_pins.iter().flat_map(|p| p.points.node_groups()).map(<[u32]>::to_vec).collect();
+    ///
+    /// Flat, without the repeats that cost the pattern's build most (48 % of a topology change's
+    /// system build on `bunny_slice.ron` went to one vector per triangle): a row equal to the
+    /// one before it is skipped, and so is a triangle whose three rows name the same nodes (its
+    /// first vertex's row is a group already).
+    pub(crate) fn coupling_groups(&self) -> NodeGroups {
+        let mut groups = NodeGroups::default();
+        for rows in self.penalty_pins.iter().map(|p| &p.points) {
+            groups.extend_rows(rows);
+        }
         if let Some(points) = self.contact_points.as_ref().filter(|_| self.has_contact()) {
-            groups.extend(points.node_groups().map(<[u32]>::to_vec));
+            groups.extend_rows(points);
             if let Some(surface) = &self.surface_contact {
+                let mut nodes: Vec<u32> = Vec::with_capacity(12);
                 for t in &surface.triangles {
-                    let mut nodes: Vec<u32> =
-                        t.iter().flat_map(|&v| points.row(v as usize).0.iter().copied()).collect();
+                    let [a, b, c] = t.map(|v| points.row(v as usize).0);
+                    if a == b && b == c {
+                        continue;
+                    }
+                    nodes.clear();
+                    nodes.extend(a.iter().chain(b).chain(c));
                     nodes.sort_unstable();
                     nodes.dedup();
-                    groups.push(nodes);
+                    groups.push(&nodes);
                 }
             }
         }
-        // Most surface triangles and contact points of one element name the same nodes: each
-        // group once keeps the pattern's build from sorting the same pairs many times over.
-        groups.sort_unstable();
-        groups.dedup();
         groups
+    }
+}
+
+/// Node groups stored flat (one allocation for all of them).
+#[derive(Debug, Default)]
+pub(crate) struct NodeGroups {
+    nodes: Vec<u32>,
+    offsets: Vec<usize>,
+}
+
+impl NodeGroups {
+    fn push(&mut self, group: &[u32]) {
+        if self.offsets.is_empty() {
+            self.offsets.push(0);
+        }
+        self.nodes.extend_from_slice(group);
+        self.offsets.push(self.nodes.len());
+    }
+
+    /// Every row's nodes, a row equal to the last group skipped.
+    fn extend_rows(&mut self, rows: &Embedding) {
+        for group in rows.node_groups() {
+            if self.iter().next_back() != Some(group) {
+                self.push(group);
+            }
+        }
+    }
+
+    /// The groups in order.
+    pub(crate) fn iter(&self) -> impl DoubleEndedIterator<Item = &[u32]> {
+        self.offsets.windows(2).map(|w| &self.nodes[w[0]..w[1]])
     }
 }

@@ -319,22 +319,6 @@ impl ContactSet {
                     set.component_cut_triangles[c].clear();
                 }
             }
-            let mut rings: Vec<Vec<u32>> = (0..points.len() as u32).map(|i| vec![i]).collect();
-            for t in &surface.triangles {
-                for &a in t {
-                    for &b in t {
-                        rings[a as usize].push(b);
-                    }
-                }
-            }
-            set.ring_offsets.push(0);
-            for mut ring in rings {
-                ring.sort_unstable();
-                ring.dedup();
-                set.ring.extend(ring);
-                set.ring_offsets.push(set.ring.len());
-            }
-            set.find_edges(&surface.triangles);
             let mut counts = vec![0usize; points.len() + 1];
             for t in &surface.triangles {
                 for &k in t {
@@ -353,6 +337,20 @@ impl ContactSet {
                 }
             }
             set.vertex_triangle_offsets = counts;
+            // The one-ring from the triangles around each point (no list per point).
+            let mut ring: Vec<u32> = Vec::with_capacity(32);
+            set.ring_offsets.push(0);
+            for i in 0..points.len() {
+                ring.clear();
+                ring.push(i as u32);
+                let around = &set.vertex_triangles[set.vertex_triangle_offsets[i]..set.vertex_triangle_offsets[i + 1]];
+                ring.extend(around.iter().flat_map(|&t| surface.triangles[t as usize]));
+                ring.sort_unstable();
+                ring.dedup();
+                set.ring.extend_from_slice(&ring);
+                set.ring_offsets.push(set.ring.len());
+            }
+            set.find_edges(&surface.triangles);
         }
         set
     }

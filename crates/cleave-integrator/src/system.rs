@@ -70,7 +70,7 @@ impl AssembledSystem {
         let coupling = constraints.coupling_groups();
         let pattern = AssemblyPattern::from_groups(
             discretization.num_nodes(),
-            discretization.blocks().node_groups().chain(coupling.iter().map(Vec::as_slice)),
+            discretization.blocks().node_groups().chain(coupling.iter()),
         );
         Self::on_pattern(pattern, discretization, constraints, with_cholesky)
     }

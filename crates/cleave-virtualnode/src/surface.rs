@@ -155,7 +155,8 @@ fn merged_loop(cells: &Arrangement, faces: &[&Face]) -> Option<Vec<u32>> {
     if faces.len() < 2 {
         return None;
     }
-    // Cells split apart make their own copies of a vertex on a shared edge: one id per position.
+    // Cells split apart make their own copies of a vertex on a shared edge: one id per position
+    // (the first in x order of those within the tolerance).
     let mut ids: Vec<u32> = faces.iter().flat_map(|f| f.verts.iter().copied()).collect();
     ids.sort_unstable();
     ids.dedup();
@@ -163,67 +164,60 @@ fn merged_loop(cells: &Arrangement, faces: &[&Face]) -> Option<Vec<u32>> {
         (lo.inf(&cells.point(v)), hi.sup(&cells.point(v)))
     });
     let tolerance = 1e-10 * (hi - lo).norm();
-    let canonical: Vec<(u32, u32)> = ids
-        .iter()
-        .map(|&v| {
-            let p = cells.point(v);
-            (v, *ids.iter().find(|&&w| (cells.point(w) - p).norm() <= tolerance).expect("v itself"))
-        })
-        .collect();
-    let weld = |v: u32| canonical[canonical.binary_search_by_key(&v, |c| c.0).expect("a face vertex")].1;
-    ids.retain(|&v| weld(v) == v);
+    let mut by_x = ids.clone();
+    by_x.sort_by(|&u, &v| cells.point(u).x.total_cmp(&cells.point(v).x));
+    let mut canonical: Vec<(u32, u32)> = ids.iter().map(|&v| (v, v)).collect();
+    let slot = |v: u32| ids.binary_search(&v).expect("a face vertex");
+    for (i, &u) in by_x.iter().enumerate() {
+        let pu = cells.point(u);
+        for &w in &by_x[i + 1..] {
+            let pw = cells.point(w);
+            if pw.x - pu.x > tolerance {
+                break;
+            }
+            let (su, sw) = (slot(u), slot(w));
+            if canonical[sw].1 == w && (pw - pu).norm() <= tolerance {
+                canonical[sw].1 = canonical[su].1;
+            }
+        }
+    }
+    let weld = |v: u32| canonical[slot(v)].1;
     let mut edges: Vec<(u32, u32)> = Vec::new();
-    let mut on_edge: Vec<(Real, u32)> = Vec::new();
     for face in faces {
         let n = face.verts.len();
-        for i in 0..n {
-            let (a, b) = (weld(face.verts[i]), weld(face.verts[(i + 1) % n]));
-            if a == b {
-                continue;
-            }
-            let (pa, pb) = (cells.point(a), cells.point(b));
-            let d = pb - pa;
-            let len2 = d.norm_squared();
-            on_edge.clear();
-            for &w in &ids {
-                if w == a || w == b {
-                    continue;
+        edges.extend((0..n).map(|i| (weld(face.verts[i]), weld(face.verts[(i + 1) % n]))).filter(|e| e.0 != e.1));
+    }
+    let chain = match single_loop(&mut edges) {
+        Some(chain) => chain,
+        None => {
+            // Where one fragment's edge passes through another's vertex, split it there and
+            // try again.
+            let kept: Vec<u32> = ids.iter().copied().filter(|&v| weld(v) == v).collect();
+            let mut split = Vec::with_capacity(edges.len());
+            let mut on_edge: Vec<(Real, u32)> = Vec::new();
+            for &(a, b) in &edges {
+                let (pa, pb) = (cells.point(a), cells.point(b));
+                let d = pb - pa;
+                let len2 = d.norm_squared();
+                on_edge.clear();
+                for &w in kept.iter().filter(|&&w| w != a && w != b) {
+                    let pw = cells.point(w);
+                    let t = (pw - pa).dot(&d) / len2;
+                    if t > 1e-9 && t < 1.0 - 1e-9 && (pw - (pa + d * t)).norm_squared() <= 1e-20 * len2 {
+                        on_edge.push((t, w));
+                    }
                 }
-                let pw = cells.point(w);
-                let t = (pw - pa).dot(&d) / len2;
-                if t > 1e-9 && t < 1.0 - 1e-9 && (pw - (pa + d * t)).norm_squared() <= 1e-20 * len2 {
-                    on_edge.push((t, w));
+                on_edge.sort_by(|x, y| x.0.total_cmp(&y.0));
+                let mut from = a;
+                for &(_, w) in &on_edge {
+                    split.push((from, w));
+                    from = w;
                 }
+                split.push((from, b));
             }
-            on_edge.sort_by(|x, y| x.0.total_cmp(&y.0));
-            let mut from = a;
-            for &(_, w) in &on_edge {
-                edges.push((from, w));
-                from = w;
-            }
-            edges.push((from, b));
+            single_loop(&mut split)?
         }
-    }
-    // Interior edges come once in each direction.
-    edges.sort_unstable();
-    let boundary: Vec<(u32, u32)> =
-        edges.iter().copied().filter(|&(a, b)| a != b && edges.binary_search(&(b, a)).is_err()).collect();
-    if boundary.len() < 3 || boundary.windows(2).any(|w| w[0].0 == w[1].0) {
-        return None;
-    }
-    let next = |v: u32| boundary.binary_search_by_key(&v, |e| e.0).ok().map(|k| boundary[k].1);
-    let mut chain = vec![boundary[0].0];
-    let mut v = boundary[0].1;
-    while v != chain[0] {
-        if chain.len() > boundary.len() {
-            return None;
-        }
-        chain.push(v);
-        v = next(v)?;
-    }
-    if chain.len() != boundary.len() {
-        return None;
-    }
+    };
     // Convex, with the normal of the faces (Newell's normal of the loop).
     let points: Vec<Point3<Real>> = chain.iter().map(|&v| cells.point(v)).collect();
     let m = points.len();
@@ -241,6 +235,28 @@ fn merged_loop(cells: &Arrangement, faces: &[&Face]) -> Option<Vec<u32>> {
         }
     }
     (corners.len() >= 3).then_some(corners)
+}
+
+/// The directed `edges` (sorted in place) without those met once in each direction, if what
+/// remains is one closed loop: its vertices in order.
+fn single_loop(edges: &mut [(u32, u32)]) -> Option<Vec<u32>> {
+    edges.sort_unstable();
+    let boundary: Vec<(u32, u32)> =
+        edges.iter().copied().filter(|&(a, b)| edges.binary_search(&(b, a)).is_err()).collect();
+    if boundary.len() < 3 || boundary.windows(2).any(|w| w[0].0 == w[1].0) {
+        return None;
+    }
+    let next = |v: u32| boundary.binary_search_by_key(&v, |e| e.0).ok().map(|k| boundary[k].1);
+    let mut chain = vec![boundary[0].0];
+    let mut v = boundary[0].1;
+    while v != chain[0] {
+        if chain.len() >= boundary.len() {
+            return None;
+        }
+        chain.push(v);
+        v = next(v)?;
+    }
+    (chain.len() == boundary.len()).then_some(chain)
 }
 
 /// A uniform grid of points for "which vertices lie near this segment" queries.
@@ -310,6 +326,7 @@ impl VirtualNodeMesh {
         let source = self.source();
         let num_tets = source.triangles_of_tet.len();
         let untouched: Vec<bool> = (0..num_tets)
+            .into_par_iter()
             .map(|t| match self.duplicates_of_tet(t) {
                 [d] => !self
                     .duplicate_cells(*d as usize)
@@ -334,6 +351,7 @@ impl VirtualNodeMesh {
         };
         // Whole triangles: all their tetrahedra untouched, all three corners in one piece.
         let whole: Vec<Option<u32>> = (0..source.triangles.len())
+            .into_par_iter()
             .map(|i| {
                 let tets = &source.tets_of_triangle[i];
                 if tets.is_empty() || !tets.iter().all(|&t| untouched[t as usize]) {
@@ -362,9 +380,14 @@ impl VirtualNodeMesh {
                 });
             }
         }
-        let mut groups: Vec<FaceGroup> = Vec::new();
-        for (k, piece) in pieces.iter().enumerate() {
-            for &d in &piece.duplicates {
+        // The covered faces of every duplicate (in parallel), in piece and duplicate order.
+        let faces_of: Vec<(usize, Vec<Polygon>)> = pieces
+            .iter()
+            .enumerate()
+            .flat_map(|(k, piece)| piece.duplicates.iter().map(move |&d| (k, d)))
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map_init(Vec::new, |groups: &mut Vec<FaceGroup>, (k, d)| {
                 let cells = self.duplicate_cells(d as usize);
                 let tet = self.tet_of_duplicate(d as usize);
                 // Object-surface faces of an untouched tetrahedron are still the carved ones, in
@@ -398,18 +421,24 @@ impl VirtualNodeMesh {
                         }
                     }
                 }
-                for ((_, _, kind), faces) in &groups {
-                    let loops = match merged_loop(cells, faces) {
-                        Some(merged) => vec![merged],
-                        None => faces.iter().map(|f| f.verts.clone()).collect(),
+                let mut polygons = Vec::new();
+                for ((_, _, kind), faces) in groups.iter() {
+                    let polygon = |verts: &[u32]| Polygon {
+                        owner: Owner::Duplicate(d),
+                        duplicate: d,
+                        kind: *kind,
+                        points: verts.iter().map(|&v| cells.point(v)).collect(),
                     };
-                    for verts in loops {
-                        let points = verts.iter().map(|&v| cells.point(v)).collect();
-                        let polygon = Polygon { owner: Owner::Duplicate(d), duplicate: d, kind: *kind, points };
-                        polygons_of_piece[k].push(polygon);
+                    match merged_loop(cells, faces) {
+                        Some(merged) => polygons.push(polygon(&merged)),
+                        None => polygons.extend(faces.iter().map(|f| polygon(&f.verts))),
                     }
                 }
-            }
+                (k, polygons)
+            })
+            .collect();
+        for (k, polygons) in faces_of {
+            polygons_of_piece[k].extend(polygons);
         }
         // Pieces share no vertex (a vertex's nodes belong to one piece): built in parallel.
         let parts: Vec<RenderSurface> = polygons_of_piece
