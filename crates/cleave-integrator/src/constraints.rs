@@ -188,15 +188,15 @@ impl Constraints {
         self.contact_points.is_some() && self.has_any_contact()
     }
 
-    /// Node groups that penalty terms couple (for the sparsity pattern): every pin row, every
-    /// contact point row and, with surface contact, the nodes of every surface triangle's three
-    /// vertex rows together (the triangle side of a contact row). The couplings between a
-    /// point and a triangle change every step and are not in the pattern.
+    /// Node groups that penalty terms couple (for the sparsity pattern): every pin row and every
+    /// contact point row (a point against a plane or a static mesh). The rows of surface and
+    /// edge contacts (a point and a triangle, two edges) join the pattern when they first occur
+    /// (`contact::missing_couplings`); so do the couplings among a triangle's vertex rows, which
+    /// a group per surface triangle here would add to the pattern of every epoch whether the
+    /// triangle ever touches anything or not (on `bunny_slice.ron` that fill made the
+    /// factorization 40 % slower: docs/math/contact.md §3).
     ///
-    /// Flat, without the repeats that cost the pattern's build most (48 % of a topology change's
-    /// system build on `bunny_slice.ron` went to one vector per triangle): a row equal to the
-    /// one before it is skipped, and so is a triangle whose three rows name the same nodes (its
-    /// first vertex's row is a group already).
+    /// Flat, a row equal to the one before it skipped (points of one element come together).
     pub(crate) fn coupling_groups(&self) -> NodeGroups {
         let mut groups = NodeGroups::default();
         for rows in self.penalty_pins.iter().map(|p| &p.points) {
@@ -204,20 +204,6 @@ impl Constraints {
         }
         if let Some(points) = self.contact_points.as_ref().filter(|_| self.has_contact()) {
             groups.extend_rows(points);
-            if let Some(surface) = &self.surface_contact {
-                let mut nodes: Vec<u32> = Vec::with_capacity(12);
-                for t in &surface.triangles {
-                    let [a, b, c] = t.map(|v| points.row(v as usize).0);
-                    if a == b && b == c {
-                        continue;
-                    }
-                    nodes.clear();
-                    nodes.extend(a.iter().chain(b).chain(c));
-                    nodes.sort_unstable();
-                    nodes.dedup();
-                    groups.push(&nodes);
-                }
-            }
         }
         groups
     }
