@@ -624,7 +624,11 @@ impl ContactSet {
         };
         let lists = self.component_triangles.iter().chain(&self.component_cut_triangles);
         if self.bvh_all.is_empty() {
-            let mut all: Vec<Bvh> = lists
+            // Built at the first step of an epoch, one tree per task.
+            let mut all: Vec<Bvh> = self
+                .component_triangles
+                .par_iter()
+                .chain(self.component_cut_triangles.par_iter())
                 .map(|list| {
                     let leaves: Vec<Aabb> = list.iter().map(|&t| leaf(&triangles[t as usize])).collect();
                     Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves)
@@ -805,7 +809,7 @@ impl ContactSet {
         if self.bvh_edges.is_empty() {
             self.bvh_edges = self
                 .component_edges
-                .iter()
+                .par_iter()
                 .map(|list| {
                     let leaves: Vec<Aabb> = list.iter().map(|&e| leaf(&self.edges[e as usize])).collect();
                     Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves)

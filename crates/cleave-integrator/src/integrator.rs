@@ -192,6 +192,8 @@ pub struct Integrator {
     last_inverted: usize,
     /// Times the pattern grew for new surface contacts (whole run).
     pattern_growths: u64,
+    /// Whether the assembled system of this epoch is still to be built (by the next step).
+    assembly_pending: bool,
     /// Whether the contacts were found for an earlier state (set by a topology change).
     contacts_stale: bool,
     /// Pieces without pins, whose elastic torque a step removes.
@@ -224,15 +226,18 @@ impl Integrator {
             work: Workspace::default(),
             last_inverted: 0,
             pattern_growths: 0,
+            assembly_pending: false,
             contacts_stale: false,
             free_pieces: FreePieces::default(),
         };
-        integrator.rebuild(discretization).map_err(|kind| StepError { step: 0, kind })?;
+        integrator.rebuild(discretization, false).map_err(|kind| StepError { step: 0, kind })?;
         Ok(integrator)
     }
 
-    /// Rebuilds everything that depends on the topology: loads, pins, pattern, factorization.
-    fn rebuild(&mut self, discretization: &dyn Discretization) -> Result<(), StepErrorKind> {
+    /// Rebuilds everything that depends on the topology: loads, pins, pattern, factorization
+    /// (or, with `defer_assembly`, leaves the assembled system to the next step, which builds it
+    /// with that step's contact couplings in it).
+    fn rebuild(&mut self, discretization: &dyn Discretization, defer_assembly: bool) -> Result<(), StepErrorKind> {
         let n = self.x.len();
         // Warm starts survive a topology change when the caller remapped them frame by frame.
         if self.rotations.len() != discretization.num_frames() {
@@ -272,7 +277,8 @@ impl Integrator {
             Solver::Cholesky => true,
             Solver::ConjugateGradient { assembled, .. } => assembled && discretization.wants_assembly(),
         };
-        self.system = if needs_assembly {
+        self.assembly_pending = needs_assembly && defer_assembly;
+        self.system = if needs_assembly && !defer_assembly {
             Some(AssembledSystem::new(discretization, &self.constraints, self.settings.solver == Solver::Cholesky)?)
         } else {
             None
@@ -369,7 +375,10 @@ impl Integrator {
         std::mem::swap(&mut self.v, &mut remapped);
         self.rotations = change.frames.apply(&self.rotations);
         self.constraints = constraints;
-        self.rebuild(discretization).map_err(|kind| StepError { step: self.step, kind })
+        // With surface contact the first step's contacts grow the pattern anyway: its system is
+        // built then, with them, and one symbolic factorization per cut is saved.
+        let defer = self.constraints.surface_contact.is_some();
+        self.rebuild(discretization, defer).map_err(|kind| StepError { step: self.step, kind })
     }
 
     /// Current positions (DOF vector).
@@ -524,6 +533,22 @@ impl Integrator {
         let mut passes = 0;
         // Iterations summed over the passes (a Cholesky pass counts one).
         let mut iterations = 0;
+        if self.assembly_pending {
+            let clock = Instant::now();
+            let mut pattern = AssembledSystem::base_pattern(discretization, &self.constraints);
+            if let Some(points) =
+                self.constraints.contact_points.as_ref().filter(|_| self.constraints.surface_contact.is_some())
+            {
+                let missing = contact::missing_couplings(points, &self.work.contacts, &pattern);
+                if !missing.is_empty() {
+                    pattern = pattern.with_groups(missing.iter().map(Vec::as_slice));
+                }
+            }
+            let cholesky = self.settings.solver == Solver::Cholesky;
+            self.system = Some(AssembledSystem::on_pattern(pattern, discretization, &self.constraints, cholesky)?);
+            self.assembly_pending = false;
+            seconds.pattern += clock.elapsed().as_secs_f64();
+        }
         let residual = loop {
             if let Some(system) = &self.system
                 && self.constraints.surface_contact.is_some()

@@ -67,12 +67,16 @@ impl AssembledSystem {
         constraints: &Constraints,
         with_cholesky: bool,
     ) -> Result<Self, StepErrorKind> {
+        Self::on_pattern(Self::base_pattern(discretization, constraints), discretization, constraints, with_cholesky)
+    }
+
+    /// The pattern of the blocks and the constraints' coupling groups (each epoch's start).
+    pub(crate) fn base_pattern(discretization: &dyn Discretization, constraints: &Constraints) -> AssemblyPattern {
         let coupling = constraints.coupling_groups();
-        let pattern = AssemblyPattern::from_groups(
+        AssemblyPattern::from_groups(
             discretization.num_nodes(),
             discretization.blocks().node_groups().chain(coupling.iter()),
-        );
-        Self::on_pattern(pattern, discretization, constraints, with_cholesky)
+        )
     }
 
     /// The system of the same epoch on this pattern grown by `couplings` (surface contacts
@@ -88,7 +92,9 @@ impl AssembledSystem {
         Self::on_pattern(pattern, discretization, constraints, self.cholesky.is_some())
     }
 
-    fn on_pattern(
+    /// Ranks, pinned positions, values and (with `with_cholesky`) the symbolic factorization on
+    /// `pattern`.
+    pub(crate) fn on_pattern(
         pattern: AssemblyPattern,
         discretization: &dyn Discretization,
         constraints: &Constraints,
