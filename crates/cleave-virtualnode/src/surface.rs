@@ -574,3 +574,114 @@ impl VirtualNodeMesh {
         sources
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Area of a planar polygon (half the norm of its Newell normal).
+    fn area(points: &[Point3<Real>]) -> Real {
+        let n = points.len();
+        0.5 * (0..n).fold(Vector3::zeros(), |s, i| s + points[i].coords.cross(&points[(i + 1) % n].coords)).norm()
+    }
+
+    #[test]
+    fn fragments_of_a_cut_split_by_a_second_cut_merge_into_the_section() {
+        let corners = [
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+            Point3::new(0.0, 0.0, 1.0),
+        ];
+        let mut cells = Arrangement::tetrahedron(corners);
+        // The plane z = 0.3 (covering the whole section), then x = 0.2 across it.
+        let big = 10.0;
+        assert!(
+            cells.cut(
+                &[Point3::new(-big, -big, 0.3), Point3::new(big, -big, 0.3), Point3::new(0.0, big, 0.3)],
+                Cover::Cut
+            )
+        );
+        assert!(
+            cells.cut(
+                &[Point3::new(0.2, -big, -big), Point3::new(0.2, big, -big), Point3::new(0.2, 0.0, big)],
+                Cover::Cut
+            )
+        );
+        // The faces on z = 0.3 seen from below (outward +z of the cells under it).
+        let below: Vec<&Face> = cells
+            .cells
+            .iter()
+            .flat_map(|c| &c.faces)
+            .filter(|f| f.cover == Cover::Cut && f.verts.iter().all(|&v| (cells.point(v).z - 0.3).abs() < 1e-12))
+            .filter(|f| {
+                let p: Vec<Point3<Real>> = f.verts.iter().map(|&v| cells.point(v)).collect();
+                (p[1] - p[0]).cross(&(p[2] - p[0])).z > 0.0
+            })
+            .collect();
+        assert_eq!(below.len(), 2, "the second cut splits the section in two");
+        let merged = merged_loop(&cells, &below).expect("two halves of a triangle merge");
+        let points: Vec<Point3<Real>> = merged.iter().map(|&v| cells.point(v)).collect();
+        // The section of the tet at z = 0.3 is the triangle with legs 0.7: area 0.245; the split
+        // points on its edges are collinear and dropped, so three corners remain.
+        assert_eq!(points.len(), 3);
+        assert!((area(&points) - 0.5 * 0.7 * 0.7).abs() < 1e-12, "area {}", area(&points));
+        let fragments: Real =
+            below.iter().map(|f| area(&f.verts.iter().map(|&v| cells.point(v)).collect::<Vec<_>>())).sum();
+        assert!((fragments - 0.245).abs() < 1e-12);
+        // Same orientation as the fragments (counter-clockwise seen from +z).
+        assert!((points[1] - points[0]).cross(&(points[2] - points[0])).z > 0.0);
+    }
+
+    #[test]
+    fn fragments_around_a_reflex_corner_stay_apart() {
+        let corners = [
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+            Point3::new(0.0, 0.0, 1.0),
+        ];
+        let mut cells = Arrangement::tetrahedron(corners);
+        let big = 10.0;
+        let z = [Point3::new(-big, -big, 0.3), Point3::new(big, -big, 0.3), Point3::new(0.0, big, 0.3)];
+        let x = [Point3::new(0.2, -big, -big), Point3::new(0.2, big, -big), Point3::new(0.2, 0.0, big)];
+        let y = [Point3::new(-big, 0.2, -big), Point3::new(big, 0.2, -big), Point3::new(0.0, 0.2, big)];
+        for t in [z, x, y] {
+            assert!(cells.cut(&t, Cover::Cut));
+        }
+        let below: Vec<&Face> = cells
+            .cells
+            .iter()
+            .flat_map(|c| &c.faces)
+            .filter(|f| f.cover == Cover::Cut && f.verts.iter().all(|&v| (cells.point(v).z - 0.3).abs() < 1e-12))
+            .filter(|f| {
+                let p: Vec<Point3<Real>> = f.verts.iter().map(|&v| cells.point(v)).collect();
+                (p[1] - p[0]).cross(&(p[2] - p[0])).z > 0.0
+            })
+            .collect();
+        assert_eq!(below.len(), 4, "two cuts split the section in four");
+        let centroid = |f: &Face| {
+            Point3::from(
+                f.verts.iter().fold(Vector3::zeros(), |s, &v| s + cells.point(v).coords) / f.verts.len() as Real,
+            )
+        };
+        // All four: the whole section again.
+        let all = merged_loop(&cells, &below).expect("the four quarters merge");
+        assert_eq!(all.len(), 3);
+        // Three of them, the corner at the origin left out: an L with a reflex corner at
+        // (0.2, 0.2), which is not one convex polygon.
+        let without_corner: Vec<&Face> =
+            below.iter().copied().filter(|f| centroid(f).x > 0.2 || centroid(f).y > 0.2).collect();
+        assert_eq!(without_corner.len(), 3);
+        assert!(merged_loop(&cells, &without_corner).is_none());
+        // The two beyond x = 0.2 (split by y = 0.2): the part of the section with x > 0.2, a
+        // triangle with legs 0.5 and area 0.125.
+        let beyond: Vec<&Face> = below.iter().copied().filter(|f| centroid(f).x > 0.2).collect();
+        let merged = merged_loop(&cells, &beyond).expect("the two parts beyond x = 0.2 merge");
+        let points: Vec<Point3<Real>> = merged.iter().map(|&v| cells.point(v)).collect();
+        assert_eq!(points.len(), 3);
+        assert!((area(&points) - 0.125).abs() < 1e-12, "area {}", area(&points));
+        // A single face is left as it is.
+        assert!(merged_loop(&cells, &below[..1]).is_none());
+    }
+}
