@@ -164,13 +164,14 @@ pub fn section(rows: &[CutRow], order: &[String], cannot_cut: &[String], errors:
     let _ = writeln!(w, "## Cutting\n");
     let _ = writeln!(
         w,
-        "The whole timeline of [`{SCENE}`](../../{SCENE}) (a blade path sweeping down through the bunny \
-         between 0.5 s and 1.5 s, then a plane at 1.8 s and one at 2.1 s crossing both earlier cuts; 240 \
-         steps of 1/60 s) run through `cleave_scene::Simulation` on every registered backend whose \
-         capabilities include cutting, with the scene's settings for that backend and no recording \
-         (`xtask/src/cutting.rs`). *ms per change* is the mean wall clock of a topology change: the \
-         backend's cut, the integrator's rebuild (pattern, symbolic factorization), pins, contact rows \
-         and surface. Drifts are relative to the start. Steps per second are measured in the steps that \
+        "The whole timeline of [`{SCENE}`](../../{SCENE}) (a horizontal plane at 0.25 s, a blade path \
+         sweeping down through the bunny between 0.5 s and 1.5 s, then a plane at 1.8 s and one at 2.1 s \
+         crossing the earlier cuts; contact between the pieces; 240 steps of 1/60 s) run through \
+         `cleave_scene::Simulation` on every registered backend whose capabilities include cutting, with \
+         the scene's settings for that backend and no recording (`xtask/src/cutting.rs`). *ms per change* \
+         is the mean wall clock of a topology change: the backend's cut, the integrator's rebuild, pins, \
+         contact rows and surface (with surface contact the pattern and symbolic factorization are built \
+         by the next step, with its contacts, and count in that step's time). Drifts are relative to the start. Steps per second are measured in the steps that \
          cut and in the others separately. Raw rows: [`cutting.csv`](cutting.csv), one per backend, kept \
          for backends a later invocation does not rerun.\n"
     );

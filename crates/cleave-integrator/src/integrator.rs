@@ -349,7 +349,10 @@ impl Integrator {
     /// position and velocity), the rotations by `change.frames` (warm starts, not identities).
     /// Then loads, pins, pattern, symbolic factorization and coarse space are rebuilt for the
     /// new topology; the caller passes constraints resolved again on it (pins from their
-    /// rest-space regions, contact rows from the new surface, weak boundary loads).
+    /// rest-space regions, contact rows from the new surface, weak boundary loads). With surface
+    /// contact the assembled system (pattern, symbolic factorization) is left to the next
+    /// [`step`](Self::step), which builds it with its contact couplings in it, so an error
+    /// setting it up comes from there.
     pub fn apply_topology_change(
         &mut self,
         discretization: &dyn Discretization,
@@ -421,7 +424,8 @@ impl Integrator {
         &self.settings
     }
 
-    /// Nonzeros of the assembled matrix and of its Cholesky factor, if assembled.
+    /// Nonzeros of the assembled matrix and of its Cholesky factor, if assembled (`None` also
+    /// between a topology change with surface contact and the next step, which builds it).
     pub fn matrix_stats(&self) -> Option<(usize, Option<usize>)> {
         self.system.as_ref().map(|s| (s.pattern.nnz(), s.factor_nnz()))
     }

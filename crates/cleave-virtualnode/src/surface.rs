@@ -2,7 +2,8 @@
 //! cut, triangulated, each vertex embedded (barycentric weights) in the duplicate that owns it.
 //!
 //! Faces keep the orientation of their cell (outward), so the two sides of a cut get their own,
-//! opposite copies. Where a vertex of one face lies on an edge of another face of the same piece
+//! opposite copies. The coplanar faces of one duplicate that together cover one convex polygon
+//! (fragments of a cut or surface polygon split by the duplicate's cells) are merged into it. Where a vertex of one face lies on an edge of another face of the same piece
 //! (cells split by different planes meet along that edge), it is inserted into that edge, so
 //! that welding the vertices of a piece by rest position leaves no T-junction: the surface of
 //! every piece is then closed (every directed edge is matched by its reverse).
@@ -144,26 +145,23 @@ impl Welder {
 /// The one convex polygon that coplanar, equally oriented `faces` of one arrangement cover
 /// together, if they do: edges split where another face's vertex lies on them, interior edges
 /// (met once in each direction) cancelled, the rest chained into a single loop, collinear
-/// vertices dropped. `None` (draw the faces as they are) for a single face, several loops, a
+/// vertices dropped; `tolerance` is the render welder's ([`T_JUNCTION_TOLERANCE`] times the
+/// lattice spacing). `None` (draw the faces as they are) for a single face, several loops, a
 /// vertex with two ways on, or a loop that is not convex.
 ///
 /// A cut through a tetrahedron that the object surface or earlier cuts had split into cells
 /// leaves one fragment of the cut per cell; drawn separately they multiply the triangles that
 /// contact searches and the recording writes (merged: 29k instead of 48k triangles at the end
 /// of `bunny_slice.ron`).
-fn merged_loop(cells: &Arrangement, faces: &[&Face]) -> Option<Vec<u32>> {
+fn merged_loop(cells: &Arrangement, faces: &[&Face], tolerance: Real) -> Option<Vec<u32>> {
     if faces.len() < 2 {
         return None;
     }
     // Cells split apart make their own copies of a vertex on a shared edge: one id per position
-    // (the first in x order of those within the tolerance).
+    // (the first in x order of those within the tolerance, the render welder's).
     let mut ids: Vec<u32> = faces.iter().flat_map(|f| f.verts.iter().copied()).collect();
     ids.sort_unstable();
     ids.dedup();
-    let (lo, hi) = ids.iter().fold((Point3::from([Real::MAX; 3]), Point3::from([Real::MIN; 3])), |(lo, hi), &v| {
-        (lo.inf(&cells.point(v)), hi.sup(&cells.point(v)))
-    });
-    let tolerance = 1e-10 * (hi - lo).norm();
     let mut by_x = ids.clone();
     by_x.sort_by(|&u, &v| cells.point(u).x.total_cmp(&cells.point(v).x));
     let mut canonical: Vec<(u32, u32)> = ids.iter().map(|&v| (v, v)).collect();
@@ -218,21 +216,26 @@ fn merged_loop(cells: &Arrangement, faces: &[&Face]) -> Option<Vec<u32>> {
             single_loop(&mut split)?
         }
     };
-    // Convex, with the normal of the faces (Newell's normal of the loop).
+    // Convex, with the normal of the faces (Newell's normal of the loop). A vertex is dropped
+    // only where it lies within the welding tolerance of the chord of its neighbours and between
+    // them: anywhere else a neighbouring polygon's copy of it would be neither welded nor
+    // inserted into the merged edge, and the piece's surface would open there.
     let points: Vec<Point3<Real>> = chain.iter().map(|&v| cells.point(v)).collect();
     let m = points.len();
     let normal = (0..m).fold(Vector3::zeros(), |s, i| s + points[i].coords.cross(&points[(i + 1) % m].coords));
     let mut corners = Vec::with_capacity(m);
     for i in 0..m {
         let (a, b, c) = (points[(i + m - 1) % m], points[i], points[(i + 1) % m]);
-        let (e1, e2) = (b - a, c - b);
+        let (e1, e2, chord) = (b - a, c - b, c - a);
         let turn = e1.cross(&e2);
-        let scale = e1.norm() * e2.norm() * normal.norm();
-        if turn.dot(&normal) > 1e-9 * scale {
-            corners.push(chain[i]);
-        } else if turn.norm() * normal.norm() > 1e-9 * scale {
+        let off_chord = turn.norm() / chord.norm().max(Real::MIN_POSITIVE);
+        if off_chord <= tolerance && e1.dot(&e2) > 0.0 {
+            continue;
+        }
+        if turn.dot(&normal) <= 1e-9 * e1.norm() * e2.norm() * normal.norm() {
             return None;
         }
+        corners.push(chain[i]);
     }
     (corners.len() >= 3).then_some(corners)
 }
@@ -303,8 +306,9 @@ impl PointGrid {
 
 impl VirtualNodeMesh {
     /// The render surface: covered cell faces (object surface and both sides of every cut),
-    /// T-junctions resolved within each piece, fanned into triangles from each face's vertex
-    /// average.
+    /// coplanar fragments of one duplicate merged (see [`merged_loop`]), T-junctions resolved
+    /// within each piece, each polygon fanned into triangles from a corner whose edges carry no
+    /// inserted point, else from its vertex average.
     ///
     /// A triangle of the carved surface no longer than the lattice spacing whose lattice
     /// tetrahedra no cut has touched (each holds one duplicate without cut faces) is drawn whole, each vertex embedded in the tetrahedron
@@ -429,7 +433,7 @@ impl VirtualNodeMesh {
                         kind: *kind,
                         points: verts.iter().map(|&v| cells.point(v)).collect(),
                     };
-                    match merged_loop(cells, faces) {
+                    match merged_loop(cells, faces, tolerance) {
                         Some(merged) => polygons.push(polygon(&merged)),
                         None => polygons.extend(faces.iter().map(|f| polygon(&f.verts))),
                     }
@@ -620,7 +624,7 @@ mod tests {
             })
             .collect();
         assert_eq!(below.len(), 2, "the second cut splits the section in two");
-        let merged = merged_loop(&cells, &below).expect("two halves of a triangle merge");
+        let merged = merged_loop(&cells, &below, 1e-10).expect("two halves of a triangle merge");
         let points: Vec<Point3<Real>> = merged.iter().map(|&v| cells.point(v)).collect();
         // The section of the tet at z = 0.3 is the triangle with legs 0.7: area 0.245; the split
         // points on its edges are collinear and dropped, so three corners remain.
@@ -666,22 +670,22 @@ mod tests {
             )
         };
         // All four: the whole section again.
-        let all = merged_loop(&cells, &below).expect("the four quarters merge");
+        let all = merged_loop(&cells, &below, 1e-10).expect("the four quarters merge");
         assert_eq!(all.len(), 3);
         // Three of them, the corner at the origin left out: an L with a reflex corner at
         // (0.2, 0.2), which is not one convex polygon.
         let without_corner: Vec<&Face> =
             below.iter().copied().filter(|f| centroid(f).x > 0.2 || centroid(f).y > 0.2).collect();
         assert_eq!(without_corner.len(), 3);
-        assert!(merged_loop(&cells, &without_corner).is_none());
+        assert!(merged_loop(&cells, &without_corner, 1e-10).is_none());
         // The two beyond x = 0.2 (split by y = 0.2): the part of the section with x > 0.2, a
         // triangle with legs 0.5 and area 0.125.
         let beyond: Vec<&Face> = below.iter().copied().filter(|f| centroid(f).x > 0.2).collect();
-        let merged = merged_loop(&cells, &beyond).expect("the two parts beyond x = 0.2 merge");
+        let merged = merged_loop(&cells, &beyond, 1e-10).expect("the two parts beyond x = 0.2 merge");
         let points: Vec<Point3<Real>> = merged.iter().map(|&v| cells.point(v)).collect();
         assert_eq!(points.len(), 3);
         assert!((area(&points) - 0.125).abs() < 1e-12, "area {}", area(&points));
         // A single face is left as it is.
-        assert!(merged_loop(&cells, &below[..1]).is_none());
+        assert!(merged_loop(&cells, &below[..1], 1e-10).is_none());
     }
 }
