@@ -222,7 +222,9 @@ fn merged_loop(cells: &Arrangement, faces: &[&Face], tolerance: Real) -> Option<
     // inserted into the merged edge, and the piece's surface would open there.
     let points: Vec<Point3<Real>> = chain.iter().map(|&v| cells.point(v)).collect();
     let m = points.len();
-    let normal = (0..m).fold(Vector3::zeros(), |s, i| s + points[i].coords.cross(&points[(i + 1) % m].coords));
+    // Relative to the first point: a small polygon far from the origin keeps its digits.
+    let normal =
+        (1..m - 1).fold(Vector3::zeros(), |s, i| s + (points[i] - points[0]).cross(&(points[i + 1] - points[0])));
     let mut corners = Vec::with_capacity(m);
     for i in 0..m {
         let (a, b, c) = (points[(i + m - 1) % m], points[i], points[(i + 1) % m]);
@@ -582,110 +584,112 @@ impl VirtualNodeMesh {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 
-    /// Area of a planar polygon (half the norm of its Newell normal).
+    /// Area of a planar polygon.
     fn area(points: &[Point3<Real>]) -> Real {
         let n = points.len();
-        0.5 * (0..n).fold(Vector3::zeros(), |s, i| s + points[i].coords.cross(&points[(i + 1) % n].coords)).norm()
+        0.5 * (1..n - 1)
+            .fold(Vector3::zeros(), |s, i| s + (points[i] - points[0]).cross(&(points[i + 1] - points[0])))
+            .norm()
+    }
+
+    /// Poses of the unit tetrahedron: as it is, and turned about a skew axis and moved 1 km away
+    /// (where a formula on absolute coordinates loses the digits of a small polygon).
+    fn poses() -> [Isometry3<Real>; 2] {
+        let turned = UnitQuaternion::from_scaled_axis(Vector3::new(0.3, -0.7, 0.5));
+        [Isometry3::identity(), Isometry3::from_parts(Translation3::new(1000.0, -400.0, 250.0), turned)]
+    }
+
+    /// The unit tetrahedron placed by `pose`, cut by the plane z = 0.3 and by `x = c` for `c` in
+    /// `xs` and `y = c` for `c` in `ys` (its own frame), and the faces on z = 0.3 seen from below
+    /// (outward +z of the cells under it) with their centroids in its own frame.
+    fn section_fragments(pose: &Isometry3<Real>, xs: &[Real], ys: &[Real]) -> (Arrangement, Vec<(usize, usize)>) {
+        let corners =
+            [Point3::origin(), Point3::new(1.0, 0.0, 0.0), Point3::new(0.0, 1.0, 0.0), Point3::new(0.0, 0.0, 1.0)];
+        let mut cells = Arrangement::tetrahedron(corners.map(|p| pose * p));
+        let big = 10.0;
+        let mut planes = vec![[Point3::new(-big, -big, 0.3), Point3::new(big, -big, 0.3), Point3::new(0.0, big, 0.3)]];
+        planes.extend(
+            xs.iter().map(|&c| [Point3::new(c, -big, -big), Point3::new(c, big, -big), Point3::new(c, 0.0, big)]),
+        );
+        planes.extend(
+            ys.iter().map(|&c| [Point3::new(-big, c, -big), Point3::new(big, c, -big), Point3::new(0.0, c, big)]),
+        );
+        for t in planes {
+            assert!(cells.cut(&t.map(|p| pose * p), Cover::Cut));
+        }
+        let local = |v: u32| pose.inverse_transform_point(&cells.point(v));
+        let below = (0..cells.cells.len())
+            .flat_map(|c| (0..cells.cells[c].faces.len()).map(move |f| (c, f)))
+            .filter(|&(c, f)| {
+                let face = &cells.cells[c].faces[f];
+                let p: Vec<Point3<Real>> = face.verts.iter().map(|&v| local(v)).collect();
+                face.cover == Cover::Cut
+                    && p.iter().all(|q| (q.z - 0.3).abs() < 1e-9)
+                    && (p[1] - p[0]).cross(&(p[2] - p[0])).z > 0.0
+            })
+            .collect();
+        (cells, below)
+    }
+
+    fn faces<'a>(cells: &'a Arrangement, which: &[(usize, usize)]) -> Vec<&'a Face> {
+        which.iter().map(|&(c, f)| &cells.cells[c].faces[f]).collect()
+    }
+
+    /// The merged loop's points in the tetrahedron's own frame.
+    fn merged_points(cells: &Arrangement, faces: &[&Face], pose: &Isometry3<Real>) -> Option<Vec<Point3<Real>>> {
+        merged_loop(cells, faces, 1e-10)
+            .map(|ids| ids.iter().map(|&v| pose.inverse_transform_point(&cells.point(v))).collect())
     }
 
     #[test]
     fn fragments_of_a_cut_split_by_a_second_cut_merge_into_the_section() {
-        let corners = [
-            Point3::new(0.0, 0.0, 0.0),
-            Point3::new(1.0, 0.0, 0.0),
-            Point3::new(0.0, 1.0, 0.0),
-            Point3::new(0.0, 0.0, 1.0),
-        ];
-        let mut cells = Arrangement::tetrahedron(corners);
-        // The plane z = 0.3 (covering the whole section), then x = 0.2 across it.
-        let big = 10.0;
-        assert!(
-            cells.cut(
-                &[Point3::new(-big, -big, 0.3), Point3::new(big, -big, 0.3), Point3::new(0.0, big, 0.3)],
-                Cover::Cut
-            )
-        );
-        assert!(
-            cells.cut(
-                &[Point3::new(0.2, -big, -big), Point3::new(0.2, big, -big), Point3::new(0.2, 0.0, big)],
-                Cover::Cut
-            )
-        );
-        // The faces on z = 0.3 seen from below (outward +z of the cells under it).
-        let below: Vec<&Face> = cells
-            .cells
-            .iter()
-            .flat_map(|c| &c.faces)
-            .filter(|f| f.cover == Cover::Cut && f.verts.iter().all(|&v| (cells.point(v).z - 0.3).abs() < 1e-12))
-            .filter(|f| {
-                let p: Vec<Point3<Real>> = f.verts.iter().map(|&v| cells.point(v)).collect();
-                (p[1] - p[0]).cross(&(p[2] - p[0])).z > 0.0
-            })
-            .collect();
-        assert_eq!(below.len(), 2, "the second cut splits the section in two");
-        let merged = merged_loop(&cells, &below, 1e-10).expect("two halves of a triangle merge");
-        let points: Vec<Point3<Real>> = merged.iter().map(|&v| cells.point(v)).collect();
-        // The section of the tet at z = 0.3 is the triangle with legs 0.7: area 0.245; the split
-        // points on its edges are collinear and dropped, so three corners remain.
-        assert_eq!(points.len(), 3);
-        assert!((area(&points) - 0.5 * 0.7 * 0.7).abs() < 1e-12, "area {}", area(&points));
-        let fragments: Real =
-            below.iter().map(|f| area(&f.verts.iter().map(|&v| cells.point(v)).collect::<Vec<_>>())).sum();
-        assert!((fragments - 0.245).abs() < 1e-12);
-        // Same orientation as the fragments (counter-clockwise seen from +z).
-        assert!((points[1] - points[0]).cross(&(points[2] - points[0])).z > 0.0);
+        for pose in poses() {
+            let (cells, below) = section_fragments(&pose, &[0.2], &[]);
+            let below = faces(&cells, &below);
+            assert_eq!(below.len(), 2, "the second cut splits the section in two");
+            let points = merged_points(&cells, &below, &pose).expect("two halves of a triangle merge");
+            // The section of the tet at z = 0.3 is the triangle with legs 0.7: area 0.245; the
+            // split points on its edges are collinear and dropped, so three corners remain.
+            assert_eq!(points.len(), 3);
+            assert!((area(&points) - 0.5 * 0.7 * 0.7).abs() < 1e-9, "area {}", area(&points));
+            let fragments: Real =
+                below.iter().map(|f| area(&f.verts.iter().map(|&v| cells.point(v)).collect::<Vec<_>>())).sum();
+            assert!((fragments - 0.245).abs() < 1e-9);
+            // Same orientation as the fragments (counter-clockwise seen from +z).
+            assert!((points[1] - points[0]).cross(&(points[2] - points[0])).z > 0.0);
+        }
     }
 
     #[test]
     fn fragments_around_a_reflex_corner_stay_apart() {
-        let corners = [
-            Point3::new(0.0, 0.0, 0.0),
-            Point3::new(1.0, 0.0, 0.0),
-            Point3::new(0.0, 1.0, 0.0),
-            Point3::new(0.0, 0.0, 1.0),
-        ];
-        let mut cells = Arrangement::tetrahedron(corners);
-        let big = 10.0;
-        let z = [Point3::new(-big, -big, 0.3), Point3::new(big, -big, 0.3), Point3::new(0.0, big, 0.3)];
-        let x = [Point3::new(0.2, -big, -big), Point3::new(0.2, big, -big), Point3::new(0.2, 0.0, big)];
-        let y = [Point3::new(-big, 0.2, -big), Point3::new(big, 0.2, -big), Point3::new(0.0, 0.2, big)];
-        for t in [z, x, y] {
-            assert!(cells.cut(&t, Cover::Cut));
+        for pose in poses() {
+            let (cells, below) = section_fragments(&pose, &[0.2], &[0.2]);
+            let below = faces(&cells, &below);
+            assert_eq!(below.len(), 4, "two cuts split the section in four");
+            let centroid = |f: &Face| {
+                let sum = f.verts.iter().fold(Vector3::zeros(), |s, &v| s + cells.point(v).coords);
+                pose.inverse_transform_point(&Point3::from(sum / f.verts.len() as Real))
+            };
+            // All four: the whole section again.
+            let all = merged_points(&cells, &below, &pose).expect("the four quarters merge");
+            assert_eq!(all.len(), 3);
+            assert!((area(&all) - 0.245).abs() < 1e-9);
+            // Three of them, the corner at the origin left out: an L with a reflex corner at
+            // (0.2, 0.2), which is not one convex polygon.
+            let without_corner: Vec<&Face> =
+                below.iter().copied().filter(|f| centroid(f).x > 0.2 || centroid(f).y > 0.2).collect();
+            assert_eq!(without_corner.len(), 3);
+            assert!(merged_loop(&cells, &without_corner, 1e-10).is_none());
+            // The two beyond x = 0.2 (split by y = 0.2): the part of the section with x > 0.2, a
+            // triangle with legs 0.5 and area 0.125.
+            let beyond: Vec<&Face> = below.iter().copied().filter(|f| centroid(f).x > 0.2).collect();
+            let points = merged_points(&cells, &beyond, &pose).expect("the two parts beyond x = 0.2 merge");
+            assert_eq!(points.len(), 3);
+            assert!((area(&points) - 0.125).abs() < 1e-9, "area {}", area(&points));
+            // A single face is left as it is.
+            assert!(merged_loop(&cells, &below[..1], 1e-10).is_none());
         }
-        let below: Vec<&Face> = cells
-            .cells
-            .iter()
-            .flat_map(|c| &c.faces)
-            .filter(|f| f.cover == Cover::Cut && f.verts.iter().all(|&v| (cells.point(v).z - 0.3).abs() < 1e-12))
-            .filter(|f| {
-                let p: Vec<Point3<Real>> = f.verts.iter().map(|&v| cells.point(v)).collect();
-                (p[1] - p[0]).cross(&(p[2] - p[0])).z > 0.0
-            })
-            .collect();
-        assert_eq!(below.len(), 4, "two cuts split the section in four");
-        let centroid = |f: &Face| {
-            Point3::from(
-                f.verts.iter().fold(Vector3::zeros(), |s, &v| s + cells.point(v).coords) / f.verts.len() as Real,
-            )
-        };
-        // All four: the whole section again.
-        let all = merged_loop(&cells, &below, 1e-10).expect("the four quarters merge");
-        assert_eq!(all.len(), 3);
-        // Three of them, the corner at the origin left out: an L with a reflex corner at
-        // (0.2, 0.2), which is not one convex polygon.
-        let without_corner: Vec<&Face> =
-            below.iter().copied().filter(|f| centroid(f).x > 0.2 || centroid(f).y > 0.2).collect();
-        assert_eq!(without_corner.len(), 3);
-        assert!(merged_loop(&cells, &without_corner, 1e-10).is_none());
-        // The two beyond x = 0.2 (split by y = 0.2): the part of the section with x > 0.2, a
-        // triangle with legs 0.5 and area 0.125.
-        let beyond: Vec<&Face> = below.iter().copied().filter(|f| centroid(f).x > 0.2).collect();
-        let merged = merged_loop(&cells, &beyond, 1e-10).expect("the two parts beyond x = 0.2 merge");
-        let points: Vec<Point3<Real>> = merged.iter().map(|&v| cells.point(v)).collect();
-        assert_eq!(points.len(), 3);
-        assert!((area(&points) - 0.125).abs() < 1e-12, "area {}", area(&points));
-        // A single face is left as it is.
-        assert!(merged_loop(&cells, &below[..1], 1e-10).is_none());
     }
 }
