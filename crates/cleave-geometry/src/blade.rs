@@ -113,7 +113,62 @@ impl Blade {
         }
         soup
     }
+
+    /// What the blade newly covers from `t0` to `t1` when [`Blade::swept`] or this method
+    /// already handed over everything up to `t0`: the quads the edges swept and the polygon at
+    /// each later pose, except that the polygon at `t0` is left out (it was handed over last) and
+    /// so is the polygon after a piece of motion that keeps it in its own plane (a translation
+    /// along the plane, rotation unchanged): that polygon lies inside the polygon before the
+    /// motion and the quads its edges swept. The union over a run of steps is the same region
+    /// as with [`Blade::swept`], but a blade sliding through the material hands over a strip per
+    /// step instead of its whole face again, and its face's fan diagonal does not split material
+    /// anew at every step.
+    pub fn swept_after(&self, t0: f64, t1: f64) -> Vec<[Point3<f64>; 3]> {
+        let mut times = vec![t0];
+        times.extend(self.keyframes.iter().map(|k| k.time).filter(|&t| t > t0 && t < t1));
+        times.push(t1);
+        let normal = self.normal();
+        let mut soup = Vec::new();
+        let (mut previous_pose, mut previous) = (self.pose(t0), self.polygon_at(t0));
+        for &t in &times[1..] {
+            let pose = self.pose(t);
+            let current = self.polygon_at(t);
+            let n = current.len();
+            for i in 0..n {
+                let j = (i + 1) % n;
+                soup.push([previous[i], previous[j], current[j]]);
+                soup.push([previous[i], current[j], current[i]]);
+            }
+            let moved = pose.0 - previous_pose.0;
+            let in_plane =
+                pose.1 == previous_pose.1 && (pose.1 * normal).dot(&moved).abs() <= IN_PLANE_TOLERANCE * moved.norm();
+            if !in_plane {
+                for k in 1..n - 1 {
+                    soup.push([current[0], current[k], current[k + 1]]);
+                }
+            }
+            (previous_pose, previous) = (pose, current);
+        }
+        soup
+    }
+
+    /// Unit normal of the polygon in the blade's frame (Newell's method; zero for a polygon of
+    /// zero area, which then never counts as moving in its plane unless it stands still).
+    fn normal(&self) -> Vector3<f64> {
+        let n = self.polygon.len();
+        let origin = self.polygon[0].coords;
+        let mut normal = Vector3::zeros();
+        for i in 0..n {
+            let (a, b) = (self.polygon[i].coords - origin, self.polygon[(i + 1) % n].coords - origin);
+            normal += a.cross(&b);
+        }
+        normal.try_normalize(0.0).unwrap_or_else(Vector3::zeros)
+    }
 }
+
+/// Relative size of the out-of-plane part of a motion below which the polygon after it is taken
+/// to lie in the plane before it (rounding of the poses' translations).
+const IN_PLANE_TOLERANCE: f64 = 1e-12;
 
 #[cfg(test)]
 mod tests {
@@ -151,6 +206,70 @@ mod tests {
                 assert_eq!(covered, expected, "point {p:?}");
             }
         }
+    }
+
+    fn area(soup: &[[Point3<f64>; 3]]) -> f64 {
+        soup.iter().map(|t| 0.5 * (t[1] - t[0]).cross(&(t[2] - t[0])).norm()).sum()
+    }
+
+    fn unit_square() -> Vec<Point3<f64>> {
+        vec![
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(1.0, 1.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+        ]
+    }
+
+    fn moving(by: Vector3<f64>) -> Vec<Keyframe> {
+        vec![
+            Keyframe { time: 0.0, translation: Vector3::zeros(), rotation: UnitQuaternion::identity() },
+            Keyframe { time: 1.0, translation: by, rotation: UnitQuaternion::identity() },
+        ]
+    }
+
+    #[test]
+    fn a_sliding_blade_hands_over_strips_that_cover_the_same_rectangle() {
+        // The square of the test above, first step with its face, later steps only what is new:
+        // per step the two edges across the motion sweep 1 × 2.5/7 each (the faces, area 1 each,
+        // are left out), and the union is still exactly [0, 3.5] × [0, 1].
+        let blade = Blade::new(unit_square(), moving(Vector3::new(2.5, 0.0, 0.0))).unwrap();
+        let times: Vec<f64> = (0..=7).map(|k| k as f64 / 7.0).collect();
+        let mut soup = blade.swept(times[0], times[1]);
+        for w in times[1..].windows(2) {
+            let step = blade.swept_after(w[0], w[1]);
+            assert!((area(&step) - 2.0 * 2.5 / 7.0).abs() < 1e-12, "area {}", area(&step));
+            soup.extend(step);
+        }
+        for i in 0..80 {
+            for j in 0..30 {
+                let p = (-0.3 + 4.2 * (i as f64 + 0.5) / 80.0, -0.25 + 1.5 * (j as f64 + 0.5) / 30.0);
+                let expected = p.0 > 0.0 && p.0 < 3.5 && p.1 > 0.0 && p.1 < 1.0;
+                assert_eq!(soup.iter().any(|t| inside_triangle_2d(p, t)), expected, "point {p:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_blade_leaving_its_plane_hands_over_its_face_at_each_later_pose() {
+        // Moved 0.7 along its normal in one step: four side quads of 1 × 0.7 and the face at the
+        // end (area 1), not the face at the start. Tilted by 30° instead: the face comes too.
+        let blade = Blade::new(unit_square(), moving(Vector3::new(0.0, 0.0, 0.7))).unwrap();
+        let step = blade.swept_after(0.0, 1.0);
+        assert!((area(&step) - (4.0 * 0.7 + 1.0)).abs() < 1e-12, "area {}", area(&step));
+        assert!(step.iter().flatten().any(|p| p.z == 0.7));
+        let turning = vec![
+            Keyframe { time: 0.0, translation: Vector3::zeros(), rotation: UnitQuaternion::identity() },
+            Keyframe {
+                time: 1.0,
+                translation: Vector3::zeros(),
+                rotation: UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 30f64.to_radians()),
+            },
+        ];
+        let blade = Blade::new(unit_square(), turning).unwrap();
+        let face = blade.polygon_at(1.0);
+        let step = blade.swept_after(0.0, 1.0);
+        assert!(step.iter().any(|t| t == &[face[0], face[1], face[2]]));
     }
 
     #[test]

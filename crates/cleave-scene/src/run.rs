@@ -560,7 +560,8 @@ impl Simulation {
     /// The surfaces the timeline cuts at the start of the step from `t0` to `t1`: a `Cut` once,
     /// at the first step that starts at or after its time (a plane stays a plane: the backend
     /// cuts it exactly, without the slivers a huge two-triangle stand-in leaves along its
-    /// diagonal); the blades' soups swept over their part of this step, as one soup.
+    /// diagonal); the blades' soups swept over their part of this step, as one soup (from the
+    /// second step of a blade on, only what it newly covers: [`Blade::swept_after`]).
     fn due_cuts(&mut self, t0: Real, t1: Real) -> Vec<CutSurface> {
         let mut due = Vec::new();
         let mut swept = Vec::new();
@@ -575,8 +576,12 @@ impl Simulation {
                 }
                 TimedCut::Blade { start, end, blade } => {
                     let (a, b) = (t0.max(*start), t1.min(*end));
-                    if a < b || (a == b && a == *start) {
+                    // The first step hands over the blade's face at its start; later ones only
+                    // what is new since the step before.
+                    if a == *start && a <= b {
                         swept.extend(blade.swept(a, b));
+                    } else if a < b {
+                        swept.extend(blade.swept_after(a, b));
                     }
                 }
             }
