@@ -157,11 +157,10 @@ pub(crate) struct ContactSet {
     component_cut_triangles: Vec<Vec<u32>>,
     bvh_all: Vec<Bvh>,
     bvh_cut: Vec<Bvh>,
-    /// This step's root box of every `bvh_all` and `bvh_edges` tree: a query misses a piece
+    /// This step's root box of every `bvh_all` tree: a query misses a piece
     /// whose root it misses, without setting up a traversal (most pieces are far from most
     /// points).
     roots_all: Vec<Aabb>,
-    roots_edges: Vec<Aabb>,
     refit: RefitScratch,
     per_point: Vec<Option<Contact>>,
     /// Per surface point, the pair it found this step but did not activate (not predicted to
@@ -176,9 +175,6 @@ pub(crate) struct ContactSet {
     triangle_edges: Vec<[u32; 3]>,
     is_feature: Vec<bool>,
     feature_edges: Vec<u32>,
-    /// Per surface component its edges, with a bounding volume hierarchy over them.
-    component_edges: Vec<Vec<u32>>,
-    bvh_edges: Vec<Bvh>,
     per_edge: Vec<Option<Contact>>,
     /// Normal force of the last step per (collider, point): planes, then meshes, then the
     /// surface; what friction is proportional to.
@@ -410,7 +406,6 @@ impl ContactSet {
             let [a, b, c] = triangles[t as usize].map(|k| self.rest[k as usize]);
             (b - a).cross(&(c - a)).try_normalize(0.0)
         };
-        self.component_edges = vec![Vec::new(); self.component_points.len()];
         self.triangle_edges = vec![[0; 3]; triangles.len()];
         for group in sides.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
             for &(a, b, t) in group {
@@ -425,7 +420,6 @@ impl ContactSet {
                     _ => false,
                 };
             let e = self.edges.len() as u32;
-            self.component_edges[self.component[group[0].0 as usize] as usize].push(e);
             if feature {
                 self.feature_edges.push(e);
             }
@@ -798,30 +792,6 @@ impl ContactSet {
     /// active pair per feature edge; a pair of two feature edges is taken from the lower one.
     fn detect_edges(&mut self, surface: &crate::constraints::SurfaceContact, h: Real, first_slot: usize) {
         let (positions, velocities) = (&self.positions, &self.velocities);
-        let (component, component_velocity) = (&self.component, &self.component_velocity);
-        let leaf = |e: &[u32; 2]| -> Aabb {
-            let (p, q) = (positions[e[0] as usize], positions[e[1] as usize]);
-            let w = component_velocity[component[e[0] as usize] as usize];
-            let speed = (velocities[e[0] as usize] - w).norm().max((velocities[e[1] as usize] - w).norm());
-            let margin = Vector3::repeat(surface.reach + h * speed);
-            Aabb::new(to_parry(&(p.inf(&q) - margin)), to_parry(&(p.sup(&q) + margin)))
-        };
-        if self.bvh_edges.is_empty() {
-            self.bvh_edges = self
-                .component_edges
-                .par_iter()
-                .map(|list| {
-                    let leaves: Vec<Aabb> = list.iter().map(|&e| leaf(&self.edges[e as usize])).collect();
-                    Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves)
-                })
-                .collect();
-        } else {
-            for (bvh, list) in self.bvh_edges.iter_mut().zip(&self.component_edges) {
-                self.refit.refit(bvh, list.len(), |k| leaf(&self.edges[list[k] as usize]));
-            }
-        }
-        self.roots_edges.clear();
-        self.roots_edges.extend(self.bvh_edges.iter().map(Bvh::root_aabb));
         let mut per_edge = std::mem::take(&mut self.per_edge);
         per_edge.clear();
         per_edge.resize(self.feature_edges.len(), None);
@@ -842,7 +812,10 @@ impl ContactSet {
             // The closest active pair.
             let mut best: Option<(Real, Contact)> = None;
             let which = (ContactKind::Edge, (first_slot + k) as u32, this.lagged[first_slot + k]);
-            for (b, (bvh, list)) in this.bvh_edges.iter().zip(&this.component_edges).enumerate() {
+            // The other pieces' edges through their triangle trees (refit by `detect_surface`
+            // this step): a triangle's leaf box holds each of its edges with at least the
+            // edge's own margin, and each edge is taken from its first triangle only.
+            for (b, (bvh, list)) in this.bvh_all.iter().zip(&this.component_triangles).enumerate() {
                 if b == own {
                     continue;
                 }
@@ -850,10 +823,16 @@ impl ContactSet {
                 let motion = Vector3::repeat(h * (speeds[0] - w).norm().max((speeds[1] - w).norm()));
                 let query =
                     Aabb::new(to_parry(&(ends[0].inf(&ends[1]) - motion)), to_parry(&(ends[0].sup(&ends[1]) + motion)));
-                if !this.roots_edges[b].intersects(&query) {
+                if !this.roots_all[b].intersects(&query) {
                     continue;
                 }
-                for g in bvh.intersect_aabb(&query).map(|leaf| list[leaf as usize] as usize) {
+                let owned = |t: u32| {
+                    this.triangle_edges[t as usize]
+                        .into_iter()
+                        .filter(move |&g| this.edge_faces[g as usize][0] == t)
+                        .map(|g| g as usize)
+                };
+                for g in bvh.intersect_aabb(&query).flat_map(|leaf| owned(list[leaf as usize])) {
                     if this.is_feature[g] && g < e {
                         continue;
                     }
