@@ -214,6 +214,22 @@ pub struct VirtualNodeMesh {
     links: Vec<Link>,
     /// The carved object's surface, kept for rendering triangles the cuts left whole.
     source: SourceSurface,
+    /// What the last cut changed, for the render surface to redo only what it must.
+    last_change: Option<ChangeRecord>,
+    /// The last render surface's polygons and loops (see [`crate::surface`]).
+    pub(crate) render_cache: std::sync::Mutex<crate::surface::RenderCache>,
+}
+
+/// What one topology change replaced: read by the render surface, which keeps the polygons
+/// (and their loops) of everything the change cannot have reached.
+#[derive(Debug)]
+pub(crate) struct ChangeRecord {
+    /// The epoch before the change.
+    pub epoch_before: u64,
+    /// New index of every old duplicate that was kept unchanged.
+    pub new_of_old: Vec<Option<u32>>,
+    /// Lattice tetrahedra with a replaced duplicate.
+    pub changed_tet: Vec<bool>,
 }
 
 /// The object surface a mesh was carved from, outward oriented, with the lattice tetrahedra
@@ -413,6 +429,8 @@ impl VirtualNodeMesh {
             lumping: MassLumping::default(),
             links: Vec::new(),
             source,
+            last_change: None,
+            render_cache: Default::default(),
         };
         mesh.rebuild_topology(None, None)?;
         mesh.source.face_sources = (0..mesh.tets.len()).into_par_iter().map(|t| mesh.carved_face_sources(t)).collect();
@@ -495,6 +513,15 @@ impl VirtualNodeMesh {
     }
 
     /// Lattice tetrahedron of duplicate `d`.
+    pub(crate) fn last_change(&self) -> Option<&ChangeRecord> {
+        self.last_change.as_ref()
+    }
+
+    /// Lattice node of each corner of lattice tetrahedron `t`.
+    pub(crate) fn tet_lattice_nodes(&self, t: usize) -> [u32; 4] {
+        self.tets[t].nodes
+    }
+
     pub(crate) fn tet_of_duplicate(&self, d: usize) -> usize {
         self.duplicates[d].tet as usize
     }
@@ -1036,6 +1063,11 @@ impl VirtualNodeMesh {
         let gather = self
             .rebuild_topology(Some((&old_nodes, &parent)), Some(&reuse))
             .map_err(|e| TopologyError::Invalid(format!("rebuilding after the cut failed: {e}")))?;
+        self.last_change = Some(ChangeRecord {
+            epoch_before: self.epoch,
+            new_of_old: reuse.new_of_old,
+            changed_tet: reuse.changed_tet,
+        });
         self.epoch += 1;
         self.last_cut = CutStats {
             touched: touched.len(),

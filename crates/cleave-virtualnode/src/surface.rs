@@ -11,7 +11,7 @@
 use crate::FastMap;
 use crate::arrangement::{Arrangement, Cover, Face};
 use crate::mesh::VirtualNodeMesh;
-use cleave_core::{Embedding, Point3, Real, Vector3};
+use cleave_core::{Discretization, Embedding, Point3, Real, Vector3};
 use cleave_geometry::closest_point_on_triangle;
 use rayon::prelude::*;
 
@@ -43,34 +43,62 @@ pub struct RenderSurface {
 /// edge.
 pub const T_JUNCTION_TOLERANCE: Real = 1e-10;
 
-/// Who embeds a polygon's vertices.
-#[derive(Clone, Copy)]
-enum Owner {
-    /// A cell face of one duplicate: every vertex in that duplicate.
-    Duplicate(u32),
-    /// A whole source triangle: each vertex in the tetrahedron (of the triangle's) containing it.
-    Whole(u32),
+/// A point of a polygon's loop: rest position, barycentric weights, and for a whole source
+/// triangle the lattice tetrahedron whose (only) duplicate embeds it. Node numbers are not
+/// kept: a cut renumbers them, and the welder reads them from the duplicate at each render.
+#[derive(Clone, Copy, Debug)]
+struct CachedPoint {
+    p: Point3<Real>,
+    weights: [Real; 4],
+    tet: u32,
 }
 
-/// A point of a polygon's loop with its embedding: the duplicate's nodes and weights, and the
-/// nodes it depends on (the welding key, see [`ZERO_WEIGHT`]).
-struct LoopPoint {
-    p: Point3<Real>,
-    nodes: [u32; 4],
-    weights: [Real; 4],
-    key: [u32; 4],
+/// A polygon's loop (its corners and the points of other faces on its edges, then its vertex
+/// average where no corner can be the fan's apex) and the apex.
+type Ring = (Vec<CachedPoint>, Option<usize>);
+
+/// One polygon of the render surface, with its loop once made.
+#[derive(Clone, Debug)]
+struct Entry {
+    kind: SurfaceKind,
+    points: Vec<Point3<Real>>,
+    ring: Option<Ring>,
+}
+
+/// Where a polygon of a piece is kept: a whole source triangle, or face `e` of duplicate `d`.
+#[derive(Clone, Copy, Debug)]
+enum EntryRef {
+    Whole(u32),
+    Duplicate(u32, u32),
+}
+
+impl EntryRef {
+    fn get<'a>(self, entries: &'a [Vec<Entry>], whole: &'a [Option<Entry>]) -> &'a Entry {
+        match self {
+            EntryRef::Whole(i) => whole[i as usize].as_ref().expect("whole triangles have entries"),
+            EntryRef::Duplicate(d, e) => &entries[d as usize][e as usize],
+        }
+    }
+}
+
+/// The last render's polygons and loops, per duplicate and per whole source triangle, for the
+/// epoch they were made in. The next render after one cut takes them for every duplicate (and
+/// whole triangle) whose lattice tetrahedra share no edge with a tetrahedron the cut changed
+/// or with a tetrahedron of a source triangle that such a tetrahedron meets, while the pieces
+/// among the kept duplicates stay as they were: a loop depends on its own tetrahedron's cells
+/// and on the polygons of the tetrahedra sharing an edge with it, and on nothing else.
+#[derive(Debug, Default)]
+pub(crate) struct RenderCache {
+    epoch: Option<u64>,
+    /// Polygons the render that made this cache took from the one before.
+    reused: usize,
+    piece_of_duplicate: Vec<u32>,
+    duplicates: Vec<Vec<Entry>>,
+    whole: Vec<Option<Entry>>,
 }
 
 /// Covered faces of one duplicate on one plane, side and kind.
 type FaceGroup<'a> = ((u32, bool, SurfaceKind), Vec<&'a Face>);
-
-struct Polygon {
-    owner: Owner,
-    /// The duplicate the triangles are attributed to (for pieces).
-    duplicate: u32,
-    kind: SurfaceKind,
-    points: Vec<Point3<Real>>,
-}
 
 /// Weights below this do not count when deciding whether two embedded vertices at one rest
 /// position are the same material point (barycentric rounding on a shared face is ~1e-16).
@@ -319,7 +347,98 @@ impl VirtualNodeMesh {
     /// count by 20 on the bunny. Vertices are shared where they are the same material point: the
     /// same rest position on the same nodes (weights above [`ZERO_WEIGHT`]), so two sides of a
     /// cut never share a vertex and two tetrahedra meeting at a shared face always do.
+    ///
+    /// After a cut, polygons and loops the cut cannot have changed are taken from the last
+    /// render (see [`RenderCache`]); the result is the same as [`Self::render_surface_from_scratch`].
     pub fn render_surface(&self) -> RenderSurface {
+        let mut guard = self.render_cache.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let cache = std::mem::take(&mut *guard);
+        let (surface, cache) = self.render_surface_with(cache);
+        *guard = cache;
+        surface
+    }
+
+    /// The render surface built without the last render's polygons (what
+    /// [`Self::render_surface`] must equal).
+    pub fn render_surface_from_scratch(&self) -> RenderSurface {
+        self.render_surface_with(RenderCache::default()).0
+    }
+
+    /// Polygons (with their loops) the last [`Self::render_surface`] took from the render
+    /// before it instead of making them again.
+    pub fn render_polygons_reused(&self) -> usize {
+        self.render_cache.lock().unwrap_or_else(std::sync::PoisonError::into_inner).reused
+    }
+
+    /// Per lattice tetrahedron, whether `cache` (the last render's polygons) may not be reused
+    /// there: `None` when nothing may be (another epoch than the one before the last change, or
+    /// a piece that split among duplicates the change kept). See [`RenderCache`].
+    fn dirty_tets(&self, cache: &RenderCache, piece_of_duplicate: &[u32]) -> Option<(Vec<bool>, Vec<Option<u32>>)> {
+        let num_tets = self.source().triangles_of_tet.len();
+        let old_of_new: Vec<Option<u32>>;
+        let changed: Vec<bool>;
+        match (cache.epoch, self.last_change()) {
+            (Some(e), _) if e == self.epoch() => {
+                old_of_new = (0..self.num_duplicates() as u32).map(Some).collect();
+                changed = vec![false; num_tets];
+            }
+            (Some(e), Some(change)) if e == change.epoch_before && e + 1 == self.epoch() => {
+                let mut inverse = vec![None; self.num_duplicates()];
+                for (old, new) in change.new_of_old.iter().enumerate() {
+                    if let Some(new) = *new {
+                        inverse[new as usize] = Some(old as u32);
+                    }
+                }
+                old_of_new = inverse;
+                changed = change.changed_tet.clone();
+            }
+            _ => return None,
+        }
+        // Pieces among kept duplicates must be the pieces they were in (one to one): a piece
+        // split apart elsewhere would drop T-junction points between polygons that did not move.
+        let mut new_of_old_piece: FastMap<u32, u32> = FastMap::default();
+        let mut old_of_new_piece: FastMap<u32, u32> = FastMap::default();
+        for (d, old) in old_of_new.iter().enumerate() {
+            let Some(old) = *old else { continue };
+            let (new_piece, old_piece) = (piece_of_duplicate[d], *cache.piece_of_duplicate.get(old as usize)?);
+            if *new_of_old_piece.entry(old_piece).or_insert(new_piece) != new_piece
+                || *old_of_new_piece.entry(new_piece).or_insert(old_piece) != old_piece
+            {
+                return None;
+            }
+        }
+        // Changed tetrahedra, and every tetrahedron of a source triangle one of them meets (that
+        // triangle is no longer drawn whole: its clipped parts appear in all its tetrahedra).
+        let source = self.source();
+        let mut grown = changed.clone();
+        for t in (0..num_tets).filter(|&t| changed[t]) {
+            for &i in &source.triangles_of_tet[t] {
+                for &u in &source.tets_of_triangle[i as usize] {
+                    grown[u as usize] = true;
+                }
+            }
+        }
+        // A polygon's loop holds the points of other polygons on its edges: of its own
+        // tetrahedron's, or, on a face or edge of it, of the tetrahedra sharing that edge (two
+        // tetrahedra of the lattice meet in a face, an edge, a vertex or not at all, and an
+        // edge point inside a tetrahedron's closure is a vertex of it only at an edge's end,
+        // which no loop inserts). So everything sharing an edge with a grown one is redone.
+        let edges_of = |t: usize| {
+            let n = self.tet_lattice_nodes(t);
+            [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)].map(|(a, b)| (n[a].min(n[b]), n[a].max(n[b])))
+        };
+        let mut grown_edges: FastMap<(u32, u32), ()> = FastMap::default();
+        for t in (0..num_tets).filter(|&t| grown[t]) {
+            grown_edges.extend(edges_of(t).map(|e| (e, ())));
+        }
+        let dirty = (0..num_tets)
+            .into_par_iter()
+            .map(|t| grown[t] || edges_of(t).iter().any(|e| grown_edges.contains_key(e)))
+            .collect();
+        Some((dirty, old_of_new))
+    }
+
+    fn render_surface_with(&self, cache: RenderCache) -> (RenderSurface, RenderCache) {
         let h = self.lattice().h;
         let tolerance = T_JUNCTION_TOLERANCE * h;
         let pieces = self.pieces();
@@ -342,8 +461,8 @@ impl VirtualNodeMesh {
                 _ => false,
             })
             .collect();
-        // The duplicate and weights of point `p` of whole triangle `i`: the tetrahedron in which
-        // its smallest barycentric coordinate is largest.
+        // The lattice tetrahedron and weights of point `p` of whole triangle `i`: the one in
+        // which its smallest barycentric coordinate is largest.
         let locate = |i: u32, p: &Point3<Real>| -> (u32, [Real; 4]) {
             let mut best = (Real::NEG_INFINITY, 0, [0.0; 4]);
             for &t in &source.tets_of_triangle[i as usize] {
@@ -353,7 +472,7 @@ impl VirtualNodeMesh {
                     best = (smallest, t, w);
                 }
             }
-            (self.duplicates_of_tet(best.1 as usize)[0], best.2)
+            (best.1, best.2)
         };
         // Whole triangles: all their tetrahedra untouched, all three corners in one piece.
         let whole: Vec<Option<u32>> = (0..source.triangles.len())
@@ -370,32 +489,42 @@ impl VirtualNodeMesh {
                 if (b - a).norm().max((c - b).norm()).max((a - c).norm()) > h {
                     return None;
                 }
-                let corners = source.triangles[i].map(|p| locate(i as u32, &p).0);
+                let corners = source.triangles[i].map(|p| self.duplicates_of_tet(locate(i as u32, &p).0 as usize)[0]);
                 let piece = piece_of_duplicate[corners[0] as usize];
                 corners.iter().all(|&d| piece_of_duplicate[d as usize] == piece).then_some(corners[0])
             })
             .collect();
-        let mut polygons_of_piece: Vec<Vec<Polygon>> = (0..pieces.len()).map(|_| Vec::new()).collect();
-        for (i, corner) in whole.iter().enumerate() {
-            if let Some(d) = *corner {
-                polygons_of_piece[piece_of_duplicate[d as usize] as usize].push(Polygon {
-                    owner: Owner::Whole(i as u32),
-                    duplicate: d,
-                    kind: SurfaceKind::Original,
-                    points: source.triangles[i].to_vec(),
-                });
+        // What the last render may lend: per new duplicate its old entries, per whole triangle
+        // its old entry, where nothing the change reached can have altered them.
+        let reuse = self.dirty_tets(&cache, &piece_of_duplicate);
+        let RenderCache { duplicates: mut old_duplicates, whole: mut old_whole, .. } = cache;
+        let mut entries: Vec<Option<Vec<Entry>>> = (0..self.num_duplicates()).map(|_| None).collect();
+        let mut whole_entries: Vec<Option<Entry>> = (0..source.triangles.len()).map(|_| None).collect();
+        if let Some((dirty, old_of_new)) = &reuse {
+            for (d, slot) in entries.iter_mut().enumerate() {
+                if let Some(old) = old_of_new[d].filter(|_| !dirty[self.tet_of_duplicate(d)]) {
+                    *slot = old_duplicates.get_mut(old as usize).map(std::mem::take);
+                }
+            }
+            for (i, slot) in whole_entries.iter_mut().enumerate() {
+                if whole[i].is_some() && !source.tets_of_triangle[i].iter().any(|&t| dirty[t as usize]) {
+                    *slot = old_whole.get_mut(i).and_then(Option::take);
+                }
             }
         }
-        // The covered faces of every duplicate (in parallel), in piece and duplicate order.
-        let faces_of: Vec<(usize, Vec<Polygon>)> = pieces
-            .iter()
-            .enumerate()
-            .flat_map(|(k, piece)| piece.duplicates.iter().map(move |&d| (k, d)))
+        for (i, slot) in whole_entries.iter_mut().enumerate() {
+            if whole[i].is_some() && slot.is_none() {
+                *slot = Some(Entry { kind: SurfaceKind::Original, points: source.triangles[i].to_vec(), ring: None });
+            }
+        }
+        // The covered faces of every other duplicate (in parallel).
+        let fresh: Vec<(usize, Vec<Entry>)> = (0..self.num_duplicates())
+            .filter(|&d| entries[d].is_none())
             .collect::<Vec<_>>()
             .into_par_iter()
-            .map_init(Vec::new, |groups: &mut Vec<FaceGroup>, (k, d)| {
-                let cells = self.duplicate_cells(d as usize);
-                let tet = self.tet_of_duplicate(d as usize);
+            .map_init(Vec::new, |groups: &mut Vec<FaceGroup>, d| {
+                let cells = self.duplicate_cells(d);
+                let tet = self.tet_of_duplicate(d);
                 // Object-surface faces of an untouched tetrahedron are still the carved ones, in
                 // the carved order, with their source triangles known.
                 let sources = &source.face_sources[tet];
@@ -429,34 +558,44 @@ impl VirtualNodeMesh {
                 }
                 let mut polygons = Vec::new();
                 for ((_, _, kind), faces) in groups.iter() {
-                    let polygon = |verts: &[u32]| Polygon {
-                        owner: Owner::Duplicate(d),
-                        duplicate: d,
+                    let entry = |verts: &[u32]| Entry {
                         kind: *kind,
                         points: verts.iter().map(|&v| cells.point(v)).collect(),
+                        ring: None,
                     };
                     match merged_loop(cells, faces, tolerance) {
-                        Some(merged) => polygons.push(polygon(&merged)),
-                        None => polygons.extend(faces.iter().map(|f| polygon(&f.verts))),
+                        Some(merged) => polygons.push(entry(&merged)),
+                        None => polygons.extend(faces.iter().map(|f| entry(&f.verts))),
                     }
                 }
-                (k, polygons)
+                (d, polygons)
             })
             .collect();
-        for (k, polygons) in faces_of {
-            polygons_of_piece[k].extend(polygons);
+        for (d, polygons) in fresh {
+            entries[d] = Some(polygons);
         }
-        // Pieces share no vertex (a vertex's nodes belong to one piece): built in parallel.
-        let parts: Vec<RenderSurface> = polygons_of_piece
+        let mut entries: Vec<Vec<Entry>> = entries.into_iter().map(Option::unwrap_or_default).collect();
+        // Per piece its polygons in order: whole triangles, then each duplicate's faces.
+        let mut refs_of_piece: Vec<Vec<EntryRef>> = (0..pieces.len()).map(|_| Vec::new()).collect();
+        for (i, corner) in whole.iter().enumerate() {
+            if let Some(d) = *corner {
+                refs_of_piece[piece_of_duplicate[d as usize] as usize].push(EntryRef::Whole(i as u32));
+            }
+        }
+        for (k, piece) in pieces.iter().enumerate() {
+            for &d in &piece.duplicates {
+                refs_of_piece[k].extend((0..entries[d as usize].len() as u32).map(|e| EntryRef::Duplicate(d, e)));
+            }
+        }
+        // The loop of every polygon without one (its corners and the points of the piece's other
+        // faces on its edges, each with its embedding), in parallel.
+        let grids: Vec<PointGrid> = refs_of_piece
             .par_iter()
-            .map(|polygons| {
-                let mut surface = RenderSurface { embedding: Embedding::new(), ..Default::default() };
-                let mut welder = Welder::new(tolerance);
+            .map(|refs| {
                 let mut grid = PointGrid { cell: 0.25 * h, buckets: FastMap::default() };
-                for polygon in polygons {
-                    for p in &polygon.points {
-                        let key = grid.key(p);
-                        grid.buckets.entry(key).or_default().push(*p);
+                for &r in refs {
+                    for p in &r.get(&entries, &whole_entries).points {
+                        grid.buckets.entry(grid.key(p)).or_default().push(*p);
                     }
                 }
                 for bucket in grid.buckets.values_mut() {
@@ -465,56 +604,92 @@ impl VirtualNodeMesh {
                     });
                     bucket.dedup();
                 }
-                // The loop of every polygon (its corners and the points of other faces on its
-                // edges) with each point's embedding, in parallel; then welding in polygon order.
-                let embedded = |polygon: &Polygon, p: Point3<Real>| -> LoopPoint {
-                    let (d, weights) = match polygon.owner {
-                        Owner::Duplicate(d) => (d, self.duplicate_shape(d as usize).barycentric(&p)),
-                        Owner::Whole(i) => locate(i, &p),
-                    };
-                    let nodes = self.duplicate_nodes_of(d as usize);
-                    let mut key = [u32::MAX; 4];
-                    for c in 0..4 {
-                        if weights[c].abs() > ZERO_WEIGHT {
-                            key[c] = nodes[c];
+                grid
+            })
+            .collect();
+        let missing: Vec<(usize, EntryRef)> = refs_of_piece
+            .iter()
+            .enumerate()
+            .flat_map(|(k, refs)| refs.iter().map(move |&r| (k, r)))
+            .filter(|&(_, r)| r.get(&entries, &whole_entries).ring.is_none())
+            .collect();
+        let rings: Vec<Ring> = missing
+            .par_iter()
+            .map_init(Vec::new, |found, &(k, r)| {
+                let polygon = r.get(&entries, &whole_entries);
+                let embedded = |p: Point3<Real>| -> CachedPoint {
+                    match r {
+                        EntryRef::Duplicate(d, _) => {
+                            CachedPoint { p, weights: self.duplicate_shape(d as usize).barycentric(&p), tet: u32::MAX }
+                        }
+                        EntryRef::Whole(i) => {
+                            let (tet, weights) = locate(i, &p);
+                            CachedPoint { p, weights, tet }
                         }
                     }
-                    key.sort_unstable();
-                    LoopPoint { p, nodes, weights, key }
                 };
-                let loops: Vec<(Vec<LoopPoint>, Option<usize>)> = polygons
-                    .par_iter()
-                    .map_init(Vec::new, |found, polygon| {
-                        let mut points = Vec::with_capacity(polygon.points.len() + 2);
-                        let mut corner = Vec::with_capacity(polygon.points.len() + 2);
-                        let n = polygon.points.len();
-                        for i in 0..n {
-                            let (a, b) = (polygon.points[i], polygon.points[(i + 1) % n]);
-                            points.push(embedded(polygon, a));
-                            corner.push(true);
-                            grid.on_segment(&a, &b, tolerance, found);
-                            points.extend(found.iter().map(|f| embedded(polygon, f.1)));
-                            corner.extend(found.iter().map(|_| false));
-                        }
-                        // Faces are convex: fanned from a corner whose two edges carry no
-                        // inserted point (any other fan triangle has positive area), else from
-                        // the vertex average (inserted points lie on the edges), appended last.
-                        let m = points.len();
-                        let apex = (0..m).find(|&a| corner[a] && corner[(a + 1) % m] && corner[(a + m - 1) % m]);
-                        if apex.is_none() {
-                            let centre = points.iter().fold(Vector3::zeros(), |s, q| s + q.p.coords) / m as Real;
-                            points.push(embedded(polygon, Point3::from(centre)));
-                        }
-                        (points, apex)
-                    })
-                    .collect();
+                let mut points = Vec::with_capacity(polygon.points.len() + 2);
+                let mut corner = Vec::with_capacity(polygon.points.len() + 2);
+                let n = polygon.points.len();
+                for i in 0..n {
+                    let (a, b) = (polygon.points[i], polygon.points[(i + 1) % n]);
+                    points.push(embedded(a));
+                    corner.push(true);
+                    grids[k].on_segment(&a, &b, tolerance, found);
+                    points.extend(found.iter().map(|f| embedded(f.1)));
+                    corner.extend(found.iter().map(|_| false));
+                }
+                // Faces are convex: fanned from a corner whose two edges carry no inserted
+                // point (any other fan triangle has positive area), else from the vertex
+                // average (inserted points lie on the edges), appended last.
+                let m = points.len();
+                let apex = (0..m).find(|&a| corner[a] && corner[(a + 1) % m] && corner[(a + m - 1) % m]);
+                if apex.is_none() {
+                    let centre = points.iter().fold(Vector3::zeros(), |s, q| s + q.p.coords) / m as Real;
+                    points.push(embedded(Point3::from(centre)));
+                }
+                (points, apex)
+            })
+            .collect();
+        for (&(_, r), ring) in missing.iter().zip(rings) {
+            let slot = match r {
+                EntryRef::Whole(i) => whole_entries[i as usize].as_mut().expect("whole triangles have entries"),
+                EntryRef::Duplicate(d, e) => &mut entries[d as usize][e as usize],
+            };
+            slot.ring = Some(ring);
+        }
+        // Welding in polygon order, per piece (pieces share no vertex: a vertex's nodes belong
+        // to one piece), in parallel.
+        let parts: Vec<RenderSurface> = refs_of_piece
+            .par_iter()
+            .map(|refs| {
+                let mut surface = RenderSurface { embedding: Embedding::new(), ..Default::default() };
+                let mut welder = Welder::new(tolerance);
                 let mut ids: Vec<u32> = Vec::new();
-                for (polygon, (points, apex)) in polygons.iter().zip(&loops) {
+                for &r in refs {
+                    let polygon = r.get(&entries, &whole_entries);
+                    let (points, apex) = polygon.ring.as_ref().expect("every polygon has its loop now");
+                    let duplicate = match r {
+                        EntryRef::Duplicate(d, _) => d,
+                        EntryRef::Whole(i) => whole[i as usize].expect("a whole triangle has its corner's duplicate"),
+                    };
                     ids.clear();
                     for q in points {
-                        ids.push(welder.find_or_insert(q.p, q.key, || {
+                        let d = match r {
+                            EntryRef::Duplicate(d, _) => d,
+                            EntryRef::Whole(_) => self.duplicates_of_tet(q.tet as usize)[0],
+                        };
+                        let nodes = self.duplicate_nodes_of(d as usize);
+                        let mut key = [u32::MAX; 4];
+                        for c in 0..4 {
+                            if q.weights[c].abs() > ZERO_WEIGHT {
+                                key[c] = nodes[c];
+                            }
+                        }
+                        key.sort_unstable();
+                        ids.push(welder.find_or_insert(q.p, key, || {
                             surface.positions.push(q.p);
-                            surface.embedding.push_row(&q.nodes, &q.weights);
+                            surface.embedding.push_row(&nodes, &q.weights);
                             surface.positions.len() as u32 - 1
                         }));
                     }
@@ -522,7 +697,7 @@ impl VirtualNodeMesh {
                         if triangle[0] != triangle[1] && triangle[1] != triangle[2] && triangle[2] != triangle[0] {
                             surface.triangles.push(triangle);
                             surface.kinds.push(polygon.kind);
-                            surface.duplicates.push(polygon.duplicate);
+                            surface.duplicates.push(duplicate);
                         }
                     };
                     match *apex {
@@ -552,7 +727,15 @@ impl VirtualNodeMesh {
             surface.kinds.extend_from_slice(&part.kinds);
             surface.duplicates.extend_from_slice(&part.duplicates);
         }
-        surface
+        let reused = refs_of_piece.iter().map(Vec::len).sum::<usize>() - missing.len();
+        let cache = RenderCache {
+            epoch: Some(self.epoch()),
+            reused,
+            piece_of_duplicate,
+            duplicates: entries,
+            whole: whole_entries,
+        };
+        (surface, cache)
     }
 
     /// The source triangle of every object-surface face of the carved duplicates of lattice

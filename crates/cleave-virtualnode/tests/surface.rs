@@ -2,7 +2,9 @@
 //! by position), encloses the piece's volume, and its original part has the object's area.
 
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real, Vector3};
+use cleave_geometry::{Blade, Keyframe};
 use cleave_virtualnode::{SurfaceKind, VirtualNodeMesh};
+use nalgebra::UnitQuaternion;
 use std::collections::HashMap;
 
 struct PieceReport {
@@ -251,4 +253,60 @@ fn triangles_no_cut_touched_are_drawn_whole() {
     );
     assert!(far_x == grid_interior && far_y == grid_interior);
     assert!(cut_side > grid_interior + 10, "the face the cut crosses is clipped");
+}
+
+#[test]
+fn the_render_surface_after_a_cut_is_the_one_built_from_scratch() {
+    // A blade slides down through a carved box in strips (the render after each strip keeps
+    // what the strip cannot have reached), then a plane splits a piece (nothing is kept) and a
+    // tilted blade cuts part way. Every render equals the one made from nothing, bit for bit.
+    let (lo, hi) = (Point3::new(0.013, -0.37, 0.2), Point3::new(0.733, 0.05, 0.62));
+    let material = Material::new(1e5, 0.3, 1000.0).unwrap();
+    let mut mesh = VirtualNodeMesh::carve(&fine_box(lo, hi, 12), 0.09, material).unwrap();
+    let same = |mesh: &VirtualNodeMesh| {
+        let (a, b) = (mesh.render_surface(), mesh.render_surface_from_scratch());
+        assert_eq!(a.positions, b.positions);
+        assert_eq!(a.triangles, b.triangles);
+        assert_eq!(a.kinds, b.kinds);
+        assert_eq!(a.duplicates, b.duplicates);
+        assert_eq!(a.embedding.len(), b.embedding.len());
+        for row in 0..a.embedding.len() {
+            assert_eq!(a.embedding.row(row), b.embedding.row(row));
+        }
+        a.triangles.len()
+    };
+    same(&mesh);
+    let blade = |x: Real, tilt: Real| {
+        let polygon = vec![
+            Point3::new(x, -0.5, 0.0),
+            Point3::new(x, 0.2, 0.0),
+            Point3::new(x + tilt, 0.2, 0.1),
+            Point3::new(x + tilt, -0.5, 0.1),
+        ];
+        let keys = vec![
+            Keyframe { time: 0.0, translation: Vector3::new(0.0, 0.0, 0.7), rotation: UnitQuaternion::identity() },
+            Keyframe { time: 1.0, translation: Vector3::new(0.0, 0.0, 0.1), rotation: UnitQuaternion::identity() },
+        ];
+        Blade::new(polygon, keys).unwrap()
+    };
+    let straight = blade(0.31, 0.0);
+    let mut reused = 0;
+    for k in 0..12 {
+        let (t0, t1) = (k as Real / 12.0, (k + 1) as Real / 12.0);
+        let soup = if k == 0 { straight.swept(t0, t1) } else { straight.swept_after(t0, t1) };
+        mesh.cut(&CutSurface::Triangles(soup)).unwrap();
+        let triangles = same(&mesh);
+        reused += mesh.render_polygons_reused();
+        println!("strip {k}: {triangles} triangles, {} polygons kept", mesh.render_polygons_reused());
+    }
+    assert!(reused > 0, "the strips must leave polygons to keep");
+    mesh.cut(&CutSurface::Plane { point: Point3::new(0.0, 0.0, 0.41), normal: Vector3::new(0.1, 0.0, 1.0) }).unwrap();
+    same(&mesh);
+    let tilted = blade(0.55, 0.04);
+    for k in 0..5 {
+        let (t0, t1) = (k as Real / 12.0, (k + 1) as Real / 12.0);
+        let soup = if k == 0 { tilted.swept(t0, t1) } else { tilted.swept_after(t0, t1) };
+        mesh.cut(&CutSurface::Triangles(soup)).unwrap();
+        same(&mesh);
+    }
 }
