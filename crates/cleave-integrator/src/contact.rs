@@ -631,8 +631,22 @@ impl ContactSet {
             self.bvh_cut = all.split_off(self.component_triangles.len());
             self.bvh_all = all;
         } else {
+            // Trees side by side, one task each (a piece's tree is refit sequentially in place:
+            // on bunny_slice's 22 trees 1.45 against 2.7 ms/step for each tree in turn spread
+            // over the pool); a tree too large to be one task uses parry's parallel update.
+            let lists_par = self.component_triangles.par_iter().chain(self.component_cut_triangles.par_iter());
+            self.bvh_all.par_iter_mut().chain(self.bvh_cut.par_iter_mut()).zip(lists_par).for_each(|(bvh, list)| {
+                if list.len() < PARALLEL_REFIT_LEAVES {
+                    for (k, &t) in list.iter().enumerate() {
+                        bvh.insert_or_update_partially(leaf(&triangles[t as usize]), k as u32, 0.0);
+                    }
+                    bvh.refit_without_opt();
+                }
+            });
             for (bvh, list) in self.bvh_all.iter_mut().chain(self.bvh_cut.iter_mut()).zip(lists) {
-                self.refit.refit(bvh, list.len(), |k| leaf(&triangles[list[k] as usize]));
+                if list.len() >= PARALLEL_REFIT_LEAVES {
+                    self.refit.refit(bvh, list.len(), |k| leaf(&triangles[list[k] as usize]));
+                }
             }
         }
         self.roots_all.clear();
@@ -1036,6 +1050,10 @@ pub(crate) fn missing_couplings(points: &Embedding, set: &ContactSet, pattern: &
     }
     missing
 }
+
+/// Trees with fewer leaves are refit one per task, side by side; larger ones with parry's
+/// parallel batch update and refit (a single large piece would otherwise refit on one core).
+const PARALLEL_REFIT_LEAVES: usize = 16384;
 
 /// Scratch of the per-step hierarchy refits, reused across steps.
 #[derive(Default)]
