@@ -200,12 +200,14 @@ fn main() {
 }
 
 /// Contact over a run, for the summary: the most active contacts of each kind in one step, the
-/// deepest penetration, and the time finding contacts and growing the pattern for them.
+/// deepest penetration, and the time finding contacts, adding their forces and matrix blocks, and
+/// growing the pattern for them.
 #[derive(Default)]
 struct ContactTotals {
     most: [usize; 4],
     deepest: f64,
     finding: f64,
+    forces: f64,
     pattern: f64,
     wall: f64,
     triangles: (usize, usize),
@@ -219,6 +221,7 @@ impl ContactTotals {
         }
         self.deepest = self.deepest.max(c.max_penetration);
         self.finding += report.seconds.contact;
+        self.forces += report.seconds.contact_forces;
         self.pattern += report.seconds.pattern;
         self.wall += wall;
         self.triangles = if self.triangles.1 == 0 {
@@ -235,11 +238,11 @@ impl ContactTotals {
         let per_step = |x: f64| 1e3 * x / steps as f64;
         println!();
         println!(
-            "| most contacts: planes | meshes | surface | edges | deepest [mm] | surface triangles | finding [ms/step] | pattern [ms/step] | share of the step |"
+            "| most contacts: planes | meshes | surface | edges | deepest [mm] | surface triangles | finding [ms/step] | forces [ms/step] | pattern [ms/step] | share of the step |"
         );
-        println!("|---|---|---|---|---|---|---|---|---|");
+        println!("|---|---|---|---|---|---|---|---|---|---|");
         println!(
-            "| {} | {} | {} | {} | {:.3} | {}–{} | {:.2} | {:.2} | {:.0} % |",
+            "| {} | {} | {} | {} | {:.3} | {}–{} | {:.2} | {:.2} | {:.2} | {:.0} % |",
             self.most[0],
             self.most[1],
             self.most[2],
@@ -248,8 +251,9 @@ impl ContactTotals {
             self.triangles.0,
             self.triangles.1,
             per_step(self.finding),
+            per_step(self.forces),
             per_step(self.pattern),
-            100.0 * (self.finding + self.pattern) / self.wall.max(1e-12)
+            100.0 * (self.finding + self.forces + self.pattern) / self.wall.max(1e-12)
         );
     }
 }

@@ -1074,19 +1074,70 @@ impl RefitScratch {
 }
 
 /// Adds `(w wᵀ) ⊗ P` of every contact to the assembled matrix, whose pattern holds every
-/// contact row's couplings (see [`missing_couplings`]).
+/// contact row's couplings (see [`missing_couplings`]). In parallel over ranges of column nodes:
+/// each task owns the values of its columns (contiguous in the column-major storage) and writes
+/// the blocks of every contact whose column node is its own, so no two tasks write one entry.
 pub(crate) fn add_matrix(points: &Embedding, set: &ContactSet, pattern: &AssemblyPattern, values: &mut [Real]) {
-    let mut entries: Vec<(u32, Real)> = Vec::with_capacity(16);
-    for c in &set.contacts {
-        entries.clear();
-        for_each_entry(points, c, |n, w| entries.push((n, w)));
-        for &(j, wj) in &entries {
-            for &(i, wi) in &entries {
-                let rank = pattern.rank(i, j).expect("the pattern holds every contact row's couplings");
-                pattern.add_block(values, rank, j, &c.matrix, wi * wj);
+    let tasks = 2 * rayon::current_num_threads();
+    let nodes = pattern.num_nodes();
+    if set.contacts.is_empty() || nodes == 0 {
+        return;
+    }
+    let col_ptr = pattern.col_ptr();
+    // Node ranges `[lo, hi)` with their slices of `values`, cut at column starts.
+    fn add_range(
+        points: &Embedding,
+        set: &ContactSet,
+        pattern: &AssemblyPattern,
+        (lo, hi): (usize, usize),
+        values: &mut [Real],
+        base: usize,
+        tasks: usize,
+    ) {
+        let col_ptr = pattern.col_ptr();
+        if tasks > 1 && hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            let (low, high) = values.split_at_mut(col_ptr[3 * mid] - base);
+            rayon::join(
+                || add_range(points, set, pattern, (lo, mid), low, base, tasks / 2),
+                || add_range(points, set, pattern, (mid, hi), high, col_ptr[3 * mid], tasks - tasks / 2),
+            );
+            return;
+        }
+        let mut entries: Vec<(u32, Real)> = Vec::with_capacity(16);
+        for c in &set.contacts {
+            entries.clear();
+            for_each_entry(points, c, |n, w| entries.push((n, w)));
+            if !entries.iter().any(|&(j, _)| (lo..hi).contains(&(j as usize))) {
+                continue;
+            }
+            // One entry per node, weights summed: the corners of a triangle mostly lie in one
+            // duplicate, so 16 entries are often 4 to 8 nodes (`w wᵀ` is the same matrix).
+            entries.sort_unstable_by_key(|e| e.0);
+            let mut kept = 0;
+            for k in 0..entries.len() {
+                if kept > 0 && entries[kept - 1].0 == entries[k].0 {
+                    entries[kept - 1].1 += entries[k].1;
+                } else {
+                    entries[kept] = entries[k];
+                    kept += 1;
+                }
+            }
+            entries.truncate(kept);
+            for &(j, wj) in entries.iter().filter(|&&(j, _)| (lo..hi).contains(&(j as usize))) {
+                for &(i, wi) in &entries {
+                    let rank = pattern.rank(i, j).expect("the pattern holds every contact row's couplings");
+                    for col in 0..3 {
+                        let at = col_ptr[3 * j as usize + col] + 3 * rank as usize - base;
+                        for row in 0..3 {
+                            values[at + row] += wi * wj * c.matrix[(row, col)];
+                        }
+                    }
+                }
             }
         }
     }
+    add_range(points, set, pattern, (0, nodes), &mut values[..col_ptr[3 * nodes]], 0, tasks);
 }
 
 /// `out += Σ (w wᵀ ⊗ P) p` over the contacts (the full rows: matrix-free path).

@@ -114,6 +114,9 @@ pub struct PhaseSeconds {
     /// Growing the pattern and its symbolic factorization for new surface contacts (part of
     /// `assembly`; zero in most steps).
     pub pattern: Real,
+    /// Adding the active contacts' forces and matrix blocks (and penalty pins', where there are
+    /// any; part of `assembly`).
+    pub contact_forces: Real,
 }
 
 impl PhaseSeconds {
@@ -520,7 +523,9 @@ impl Integrator {
         }
         self.contacts_stale = false;
         seconds.contact = contact_clock.elapsed().as_secs_f64();
+        let forces_clock = Instant::now();
         self.add_penalty_forces();
+        seconds.contact_forces += forces_clock.elapsed().as_secs_f64();
         let Workspace { rhs, force, .. } = &mut self.work;
         rhs.par_iter_mut().zip(&*force).for_each(|(r, f)| *r += h * f);
         for (r, &p) in rhs.iter_mut().zip(&self.pinned) {
@@ -571,7 +576,9 @@ impl Integrator {
             }
             if let Some(system) = &mut self.system {
                 system.fill(discretization, &self.rotations, mass_scale, stiffness_scale);
+                let forces_clock = Instant::now();
                 Self::add_penalty_matrix(&self.constraints, &self.work.contacts, h, system);
+                seconds.contact_forces += forces_clock.elapsed().as_secs_f64();
                 system.apply_pins();
             }
             seconds.assembly += assembly_clock.elapsed().as_secs_f64();

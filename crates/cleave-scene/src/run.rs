@@ -530,7 +530,7 @@ impl Simulation {
             "residual": report.residual,
             "seconds": {
                 "rotations": s.rotations, "assembly": s.assembly, "solve": s.solve, "rest": s.rest, "total": s.total(),
-                "contact": s.contact, "pattern": s.pattern,
+                "contact": s.contact, "pattern": s.pattern, "contact_forces": s.contact_forces,
             },
             "energy": {
                 "kinetic": report.kinetic_energy, "elastic": report.elastic_energy,
