@@ -310,9 +310,13 @@ impl ContactSet {
                     set.component_cut_triangles[c].push(t as u32);
                 }
             }
-            for c in 0..set.component_cut_triangles.len() {
-                if !set.holds_both_faces_of_a_cut(c, &surface.triangles) {
-                    set.component_cut_triangles[c].clear();
+            let both: Vec<bool> = (0..set.component_cut_triangles.len())
+                .into_par_iter()
+                .map(|c| set.holds_both_faces_of_a_cut(c, &surface.triangles))
+                .collect();
+            for (list, both) in set.component_cut_triangles.iter_mut().zip(both) {
+                if !both {
+                    list.clear();
                 }
             }
             let mut counts = vec![0usize; points.len() + 1];
@@ -333,18 +337,41 @@ impl ContactSet {
                 }
             }
             set.vertex_triangle_offsets = counts;
-            // The one-ring from the triangles around each point (no list per point).
-            let mut ring: Vec<u32> = Vec::with_capacity(32);
+            // The one-ring from the triangles around each point, in parallel over blocks of
+            // points (one list per block, not per point), then concatenated.
+            let (offsets, around) = (&set.vertex_triangle_offsets, &set.vertex_triangles);
+            let blocks: Vec<(Vec<u32>, Vec<usize>)> = (0..points.len())
+                .collect::<Vec<_>>()
+                .par_chunks(1024)
+                .map(|block| {
+                    let (mut rings, mut lengths) = (Vec::new(), Vec::with_capacity(block.len()));
+                    for &i in block {
+                        let start = rings.len();
+                        rings.push(i as u32);
+                        rings.extend(
+                            around[offsets[i]..offsets[i + 1]].iter().flat_map(|&t| surface.triangles[t as usize]),
+                        );
+                        rings[start..].sort_unstable();
+                        let mut kept = start;
+                        for k in start..rings.len() {
+                            if k == start || rings[k] != rings[kept - 1] {
+                                rings[kept] = rings[k];
+                                kept += 1;
+                            }
+                        }
+                        rings.truncate(kept);
+                        lengths.push(kept - start);
+                    }
+                    (rings, lengths)
+                })
+                .collect();
             set.ring_offsets.push(0);
-            for i in 0..points.len() {
-                ring.clear();
-                ring.push(i as u32);
-                let around = &set.vertex_triangles[set.vertex_triangle_offsets[i]..set.vertex_triangle_offsets[i + 1]];
-                ring.extend(around.iter().flat_map(|&t| surface.triangles[t as usize]));
-                ring.sort_unstable();
-                ring.dedup();
-                set.ring.extend_from_slice(&ring);
-                set.ring_offsets.push(set.ring.len());
+            for (rings, lengths) in blocks {
+                set.ring.extend_from_slice(&rings);
+                for length in lengths {
+                    let last = *set.ring_offsets.last().unwrap_or(&0);
+                    set.ring_offsets.push(last + length);
+                }
             }
             set.find_edges(&surface.triangles);
         }
@@ -394,37 +421,47 @@ impl ContactSet {
 
     /// The surface's edges, their faces, the feature edges and each component's edges.
     fn find_edges(&mut self, triangles: &[[u32; 3]]) {
-        let mut sides: Vec<(u32, u32, u32)> = triangles
-            .iter()
+        // Every side of every triangle as (lower point, higher point, triangle, side), sorted:
+        // the sides of one edge are consecutive.
+        let mut sides: Vec<(u32, u32, u32, u8)> = triangles
+            .par_iter()
             .enumerate()
-            .flat_map(|(t, tri)| {
-                (0..3).map(move |k| (tri[k].min(tri[(k + 1) % 3]), tri[k].max(tri[(k + 1) % 3]), t as u32))
+            .flat_map_iter(|(t, tri)| {
+                (0..3).map(move |k| (tri[k].min(tri[(k + 1) % 3]), tri[k].max(tri[(k + 1) % 3]), t as u32, k as u8))
             })
             .collect();
-        sides.sort_unstable();
+        sides.par_sort_unstable();
+        let mut starts: Vec<usize> = (0..sides.len())
+            .filter(|&i| i == 0 || (sides[i - 1].0, sides[i - 1].1) != (sides[i].0, sides[i].1))
+            .collect();
+        starts.push(sides.len());
         let rest_normal = |t: u32| {
             let [a, b, c] = triangles[t as usize].map(|k| self.rest[k as usize]);
             (b - a).cross(&(c - a)).try_normalize(0.0)
         };
+        let feature: Vec<bool> = starts
+            .par_windows(2)
+            .map(|w| {
+                let group = &sides[w[0]..w[1]];
+                group.len() != 2
+                    || match (rest_normal(group[0].2), rest_normal(group[1].2)) {
+                        (Some(n0), Some(n1)) => n0.dot(&n1) < FEATURE_DIHEDRAL_COS,
+                        _ => false,
+                    }
+            })
+            .collect();
         self.triangle_edges = vec![[0; 3]; triangles.len()];
-        for group in sides.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
-            for &(a, b, t) in group {
-                let tri = triangles[t as usize];
-                let k = (0..3).find(|&k| tri[k].min(tri[(k + 1) % 3]) == a && tri[k].max(tri[(k + 1) % 3]) == b);
-                self.triangle_edges[t as usize][k.unwrap_or(0)] = self.edges.len() as u32;
-            }
-            let faces = [group[0].2, group.get(1).map_or(group[0].2, |g| g.2)];
-            let feature = group.len() != 2
-                || match (rest_normal(faces[0]), rest_normal(faces[1])) {
-                    (Some(n0), Some(n1)) => n0.dot(&n1) < FEATURE_DIHEDRAL_COS,
-                    _ => false,
-                };
+        for (w, feature) in starts.windows(2).zip(feature) {
+            let group = &sides[w[0]..w[1]];
             let e = self.edges.len() as u32;
+            for &(_, _, t, k) in group {
+                self.triangle_edges[t as usize][k as usize] = e;
+            }
             if feature {
                 self.feature_edges.push(e);
             }
             self.edges.push([group[0].0, group[0].1]);
-            self.edge_faces.push(faces);
+            self.edge_faces.push([group[0].2, group.get(1).map_or(group[0].2, |g| g.2)]);
             self.is_feature.push(feature);
         }
     }
