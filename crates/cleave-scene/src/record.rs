@@ -222,29 +222,41 @@ impl Recorder {
             ns / 1_000_000_000,
             ns % 1_000_000_000
         );
+        // The triangles of each list (piece k, cut or not: list 2k + cut), bucketed in one pass.
+        let pieces = piece.iter().copied().max().map_or(1, |m| m as usize + 1);
+        let list_of = |t: usize| {
+            2 * piece.get(t).copied().unwrap_or(0) as usize + usize::from(on_cut.get(t).copied().unwrap_or(false))
+        };
+        let mut starts = vec![0usize; 2 * pieces + 1];
+        for t in 0..triangles.len() {
+            starts[list_of(t) + 1] += 1;
+        }
+        for l in 0..2 * pieces {
+            starts[l + 1] += starts[l];
+        }
+        let mut order = vec![0u32; triangles.len()];
+        let mut fill = starts.clone();
+        for t in 0..triangles.len() {
+            let l = list_of(t);
+            order[fill[l]] = t as u32;
+            fill[l] += 1;
+        }
         let mut local = vec![u32::MAX; points.len()];
         let mut first_list = true;
-        let pieces = piece.iter().copied().max().map_or(1, |m| m + 1);
-        let lists = (0..pieces)
-            .flat_map(|k| [(k, false, "0.85,\"g\":0.62,\"b\":0.38"), (k, true, "0.80,\"g\":0.15,\"b\":0.15")]);
-        for (k, cut, color) in lists {
-            let selected =
-                |t: usize| on_cut.get(t).copied().unwrap_or(false) == cut && piece.get(t).copied().unwrap_or(0) == k;
-            if !(0..triangles.len()).any(selected) {
+        for list in 0..2 * pieces {
+            let members = &order[starts[list]..starts[list + 1]];
+            if members.is_empty() {
                 continue;
             }
-            local.fill(u32::MAX);
+            let color = if list % 2 == 1 { "0.80,\"g\":0.15,\"b\":0.15" } else { "0.85,\"g\":0.62,\"b\":0.38" };
             if !first_list {
                 json.push(',');
             }
             first_list = false;
             json.push_str(r#"{"pose":{"position":{"x":0.0,"y":0.0,"z":0.0},"orientation":{"x":0.0,"y":0.0,"z":0.0,"w":1.0}},"points":["#);
             let mut used = 0u32;
-            for (t, triangle) in triangles.iter().enumerate() {
-                if !selected(t) {
-                    continue;
-                }
-                for &v in triangle {
+            for &t in members {
+                for &v in &triangles[t as usize] {
                     if local[v as usize] == u32::MAX {
                         local[v as usize] = used;
                         let p = points[v as usize];
@@ -264,11 +276,8 @@ impl Recorder {
             }
             let _ = write!(json, r#"],"color":{{"r":{color},"a":1.0}},"colors":[],"indices":["#);
             let mut first = true;
-            for (t, triangle) in triangles.iter().enumerate() {
-                if !selected(t) {
-                    continue;
-                }
-                for &v in triangle {
+            for &t in members {
+                for &v in &triangles[t as usize] {
                     if !first {
                         json.push(',');
                     }
@@ -277,6 +286,12 @@ impl Recorder {
                 }
             }
             json.push_str("]}");
+            // Only the points this list used get their slot back.
+            for &t in members {
+                for &v in &triangles[t as usize] {
+                    local[v as usize] = u32::MAX;
+                }
+            }
         }
         json.push_str("]}]}");
         self.write_bytes(self.surface, time, json.as_bytes())
