@@ -84,9 +84,9 @@ impl EntryRef {
 /// The last render's polygons and loops, per duplicate and per whole source triangle, for the
 /// epoch they were made in. The next render after one cut takes them for every duplicate (and
 /// whole triangle) whose lattice tetrahedra share no edge with a tetrahedron the cut changed
-/// or with a tetrahedron of a source triangle that such a tetrahedron meets, while the pieces
-/// among the kept duplicates stay as they were: a loop depends on its own tetrahedron's cells
-/// and on the polygons of the tetrahedra sharing an edge with it, and on nothing else.
+/// or with a tetrahedron of a source triangle that such a tetrahedron meets, or with a
+/// tetrahedron of a piece that split: a loop depends on its own tetrahedron's cells, on the
+/// polygons of the tetrahedra sharing an edge with it and on which of them share its piece.
 #[derive(Debug, Default)]
 pub(crate) struct RenderCache {
     epoch: Option<u64>,
@@ -377,6 +377,7 @@ impl VirtualNodeMesh {
         let num_tets = self.source().triangles_of_tet.len();
         let old_of_new: Vec<Option<u32>>;
         let changed: Vec<bool>;
+        // (`changed` grows below by the pieces that split.)
         match (cache.epoch, self.last_change()) {
             (Some(e), _) if e == self.epoch() => {
                 old_of_new = (0..self.num_duplicates() as u32).map(Some).collect();
@@ -394,17 +395,26 @@ impl VirtualNodeMesh {
             }
             _ => return None,
         }
-        // Pieces among kept duplicates must be the pieces they were in (one to one): a piece
-        // split apart elsewhere would drop T-junction points between polygons that did not move.
-        let mut new_of_old_piece: FastMap<u32, u32> = FastMap::default();
+        // A piece split among kept duplicates drops T-junction points between polygons that did
+        // not move (two sides of an earlier cut joined elsewhere, now in two pieces): every
+        // tetrahedron of a piece that split is redone. Two old pieces in one new piece (which
+        // a cut cannot make) would add points: then nothing is kept.
+        let mut new_of_old_piece: FastMap<u32, (u32, bool)> = FastMap::default();
         let mut old_of_new_piece: FastMap<u32, u32> = FastMap::default();
         for (d, old) in old_of_new.iter().enumerate() {
             let Some(old) = *old else { continue };
             let (new_piece, old_piece) = (piece_of_duplicate[d], *cache.piece_of_duplicate.get(old as usize)?);
-            if *new_of_old_piece.entry(old_piece).or_insert(new_piece) != new_piece
-                || *old_of_new_piece.entry(new_piece).or_insert(old_piece) != old_piece
-            {
+            if *old_of_new_piece.entry(new_piece).or_insert(old_piece) != old_piece {
                 return None;
+            }
+            let entry = new_of_old_piece.entry(old_piece).or_insert((new_piece, false));
+            entry.1 |= entry.0 != new_piece;
+        }
+        let mut changed = changed;
+        for (d, old) in old_of_new.iter().enumerate() {
+            let Some(old) = *old else { continue };
+            if new_of_old_piece.get(&cache.piece_of_duplicate[old as usize]).is_some_and(|e| e.1) {
+                changed[self.tet_of_duplicate(d)] = true;
             }
         }
         // Changed tetrahedra, and every tetrahedron of a source triangle one of them meets (that
