@@ -1086,24 +1086,34 @@ pub(crate) fn energy(points: &Embedding, contacts: &[Contact], x: &[Real]) -> (R
 /// epoch). Each group is the nodes of the row's points *and of the points around them*, so
 /// that a point sliding on to a neighbouring triangle needs no new pattern.
 pub(crate) fn missing_couplings(points: &Embedding, set: &ContactSet, pattern: &AssemblyPattern) -> Vec<Vec<u32>> {
-    let mut missing = Vec::new();
-    let mut nodes: Vec<u32> = Vec::with_capacity(16);
-    for c in set.contacts.iter().filter(|c| c.row.len > 1) {
-        nodes.clear();
-        for_each_entry(points, c, |n, _| nodes.push(n));
-        if nodes.iter().any(|&j| nodes.iter().any(|&i| pattern.rank(i, j).is_none())) {
-            let mut group = Vec::new();
-            for (v, _) in c.row.entries() {
-                for &around in &set.ring[set.ring_offsets[v as usize]..set.ring_offsets[v as usize + 1]] {
-                    group.extend_from_slice(points.row(around as usize).0);
+    // Checked in parallel over the contacts, each row's nodes once (the corners of a triangle
+    // mostly share a duplicate's nodes); the groups in contact order.
+    set.contacts
+        .par_iter()
+        .filter(|c| c.row.len > 1)
+        .map_init(
+            || Vec::with_capacity(16),
+            |nodes: &mut Vec<u32>, c| {
+                nodes.clear();
+                for_each_entry(points, c, |n, _| nodes.push(n));
+                nodes.sort_unstable();
+                nodes.dedup();
+                if !nodes.iter().any(|&j| nodes.iter().any(|&i| pattern.rank(i, j).is_none())) {
+                    return None;
                 }
-            }
-            group.sort_unstable();
-            group.dedup();
-            missing.push(group);
-        }
-    }
-    missing
+                let mut group = Vec::new();
+                for (v, _) in c.row.entries() {
+                    for &around in &set.ring[set.ring_offsets[v as usize]..set.ring_offsets[v as usize + 1]] {
+                        group.extend_from_slice(points.row(around as usize).0);
+                    }
+                }
+                group.sort_unstable();
+                group.dedup();
+                Some(group)
+            },
+        )
+        .flatten()
+        .collect()
 }
 
 /// Trees with fewer leaves are refit one per task, side by side; larger ones with parry's

@@ -544,6 +544,7 @@ impl Integrator {
         let mut passes = 0;
         // Iterations summed over the passes (a Cholesky pass counts one).
         let mut iterations = 0;
+        let mut built_with_contacts = false;
         if self.assembly_pending {
             let mut pattern = AssembledSystem::base_pattern(discretization, &self.constraints);
             // Only merging this step's contact couplings counts as contact's pattern work: the
@@ -563,9 +564,12 @@ impl Integrator {
             let cholesky = self.settings.solver == Solver::Cholesky;
             self.system = Some(AssembledSystem::on_pattern(pattern, discretization, &self.constraints, cholesky)?);
             self.assembly_pending = false;
+            built_with_contacts = true;
         }
         let residual = loop {
-            if let Some(system) = &self.system
+            // A system just built with this step's contacts has their couplings already.
+            if !std::mem::take(&mut built_with_contacts)
+                && let Some(system) = &self.system
                 && self.constraints.surface_contact.is_some()
                 && let Some(points) = &self.constraints.contact_points
             {
