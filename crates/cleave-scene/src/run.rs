@@ -147,8 +147,17 @@ pub struct Simulation {
 
 /// A timeline event ready to act: a fixed soup at a time, or a blade over a window.
 enum TimedCut {
-    Once { time: Real, surface: Option<CutSurface> },
-    Blade { start: Real, end: Real, blade: Blade },
+    Once {
+        time: Real,
+        surface: Option<CutSurface>,
+    },
+    /// `begun`: whether a step has handed over the blade's first soup (its face included).
+    Blade {
+        start: Real,
+        end: Real,
+        blade: Blade,
+        begun: bool,
+    },
 }
 
 /// What cutting did over a run (for the summary table and the recording).
@@ -574,13 +583,15 @@ impl Simulation {
                         due.push(surface);
                     }
                 }
-                TimedCut::Blade { start, end, blade } => {
+                TimedCut::Blade { start, end, blade, begun } => {
                     let (a, b) = (t0.max(*start), t1.min(*end));
-                    // The first step hands over the blade's face at its start; later ones only
-                    // what is new since the step before.
-                    if a == *start && a <= b {
+                    // The first step the blade is due hands over its face there (even where the
+                    // run starts after the blade did); later ones only what is new since the
+                    // step before.
+                    if !*begun && (a < b || (a == b && a == *start)) {
                         swept.extend(blade.swept(a, b));
-                    } else if a < b {
+                        *begun = true;
+                    } else if *begun && a < b {
                         swept.extend(blade.swept_after(a, b));
                     }
                 }
@@ -767,7 +778,7 @@ fn prepare_timeline(events: &[EventSpec], scene: &Path) -> Result<Vec<TimedCut>,
                 let polygon = polygon.iter().map(|p| Point3::from(*p)).collect();
                 let blade =
                     Blade::new(polygon, keyframes).map_err(|e| build_error(format!("timeline[{index}]: {e}")))?;
-                TimedCut::Blade { start: *start, end: *end, blade }
+                TimedCut::Blade { start: *start, end: *end, blade, begun: false }
             }
         });
     }
