@@ -7,6 +7,9 @@
 //! (cells split by different planes meet along that edge), it is inserted into that edge, so
 //! that welding the vertices of a piece by rest position leaves no T-junction: the surface of
 //! every piece is then closed (every directed edge is matched by its reverse).
+//!
+//! After a cut only the polygons the cut can reach are made again; the others, with their loops,
+//! come from the last render ([`RenderCache`]), and the result is the one made from scratch.
 
 use crate::FastMap;
 use crate::arrangement::{Arrangement, Cover, Face};
