@@ -9,7 +9,7 @@
 //! every piece is then closed (every directed edge is matched by its reverse).
 //!
 //! After a cut only the polygons the cut can reach are made again; the others, with their loops,
-//! come from the last render ([`RenderCache`]), and the result is the one made from scratch.
+//! come from the last render (`RenderCache`), and the result is the one made from scratch.
 
 use crate::FastMap;
 use crate::arrangement::{Arrangement, Cover, Face};
@@ -339,7 +339,7 @@ impl PointGrid {
 
 impl VirtualNodeMesh {
     /// The render surface: covered cell faces (object surface and both sides of every cut),
-    /// coplanar fragments of one duplicate merged (see [`merged_loop`]), T-junctions resolved
+    /// coplanar fragments of one duplicate merged (see `merged_loop`), T-junctions resolved
     /// within each piece, each polygon fanned into triangles from a corner whose edges carry no
     /// inserted point, else from its vertex average.
     ///
@@ -348,11 +348,11 @@ impl VirtualNodeMesh {
     /// containing it, instead of as its clipped pieces: the field is continuous across those
     /// tetrahedra, and clipping every triangle to every tetrahedron multiplies the triangle
     /// count by 20 on the bunny. Vertices are shared where they are the same material point: the
-    /// same rest position on the same nodes (weights above [`ZERO_WEIGHT`]), so two sides of a
+    /// same rest position on the same nodes (weights above `ZERO_WEIGHT`), so two sides of a
     /// cut never share a vertex and two tetrahedra meeting at a shared face always do.
     ///
     /// After a cut, polygons and loops the cut cannot have changed are taken from the last
-    /// render (see [`RenderCache`]); the result is the same as [`Self::render_surface_from_scratch`].
+    /// render (see `RenderCache` in the source); the result is the same as [`Self::render_surface_from_scratch`].
     pub fn render_surface(&self) -> RenderSurface {
         let mut guard = self.render_cache.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         let cache = std::mem::take(&mut *guard);
