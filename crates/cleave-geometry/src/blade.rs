@@ -89,28 +89,9 @@ impl Blade {
     /// the quad its endpoints swept (two triangles), with intermediate poses wherever a keyframe
     /// lies inside the interval so a turning blade is followed piecewise.
     pub fn swept(&self, t0: f64, t1: f64) -> Vec<[Point3<f64>; 3]> {
-        let mut times = vec![t0];
-        times.extend(self.keyframes.iter().map(|k| k.time).filter(|&t| t > t0 && t < t1));
-        times.push(t1);
         let mut soup = Vec::new();
-        let fan = |p: &[Point3<f64>], soup: &mut Vec<[Point3<f64>; 3]>| {
-            for k in 1..p.len() - 1 {
-                soup.push([p[0], p[k], p[k + 1]]);
-            }
-        };
-        let mut previous = self.polygon_at(times[0]);
-        fan(&previous, &mut soup);
-        for &t in &times[1..] {
-            let current = self.polygon_at(t);
-            let n = current.len();
-            for i in 0..n {
-                let j = (i + 1) % n;
-                soup.push([previous[i], previous[j], current[j]]);
-                soup.push([previous[i], current[j], current[i]]);
-            }
-            fan(&current, &mut soup);
-            previous = current;
-        }
+        fan(&self.polygon_at(t0), &mut soup);
+        self.sweep(t0, t1, true, &mut soup);
         soup
     }
 
@@ -124,11 +105,19 @@ impl Blade {
     /// step instead of its whole face again, and its face's fan diagonal does not split material
     /// anew at every step.
     pub fn swept_after(&self, t0: f64, t1: f64) -> Vec<[Point3<f64>; 3]> {
+        let mut soup = Vec::new();
+        self.sweep(t0, t1, false, &mut soup);
+        soup
+    }
+
+    /// Appends the quads the edges sweep from `t0` to `t1` (piecewise between the keyframes
+    /// inside) and the polygon at each later pose: always with `every_face`, else only after
+    /// motion that leaves the polygon's plane.
+    fn sweep(&self, t0: f64, t1: f64, every_face: bool, soup: &mut Vec<[Point3<f64>; 3]>) {
         let mut times = vec![t0];
         times.extend(self.keyframes.iter().map(|k| k.time).filter(|&t| t > t0 && t < t1));
         times.push(t1);
         let normal = self.normal();
-        let mut soup = Vec::new();
         let (mut previous_pose, mut previous) = (self.pose(t0), self.polygon_at(t0));
         for &t in &times[1..] {
             let pose = self.pose(t);
@@ -142,18 +131,16 @@ impl Blade {
             let moved = pose.0 - previous_pose.0;
             let in_plane =
                 pose.1 == previous_pose.1 && (pose.1 * normal).dot(&moved).abs() <= IN_PLANE_TOLERANCE * moved.norm();
-            if !in_plane {
-                for k in 1..n - 1 {
-                    soup.push([current[0], current[k], current[k + 1]]);
-                }
+            if every_face || !in_plane {
+                fan(&current, soup);
             }
             (previous_pose, previous) = (pose, current);
         }
-        soup
     }
 
     /// Unit normal of the polygon in the blade's frame (Newell's method; zero for a polygon of
-    /// zero area, which then never counts as moving in its plane unless it stands still).
+    /// zero area, whose face then counts as in its plane whenever the rotation holds: it covers
+    /// nothing anyway).
     fn normal(&self) -> Vector3<f64> {
         let n = self.polygon.len();
         let origin = self.polygon[0].coords;
@@ -169,6 +156,13 @@ impl Blade {
 /// Relative size of the out-of-plane part of a motion below which the polygon after it is taken
 /// to lie in the plane before it (rounding of the poses' translations).
 const IN_PLANE_TOLERANCE: f64 = 1e-12;
+
+/// Appends the fan of convex polygon `p` from its first corner.
+fn fan(p: &[Point3<f64>], soup: &mut Vec<[Point3<f64>; 3]>) {
+    for k in 1..p.len() - 1 {
+        soup.push([p[0], p[k], p[k + 1]]);
+    }
+}
 
 #[cfg(test)]
 mod tests {
