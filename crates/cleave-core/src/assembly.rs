@@ -160,6 +160,38 @@ impl AssemblyPattern {
         }
     }
 
+    /// Calls `fill(nodes, slice, base)` for the column nodes between consecutive `bounds`
+    /// (increasing), in parallel: `slice` holds the values of those nodes' columns, whose first
+    /// entry is the pattern's entry `base`. Columns are contiguous in the storage, so each task
+    /// owns its slice and no two write one entry (no atomics); the ranges are split at the middle
+    /// bound with `rayon::join`, with no allocation.
+    pub fn for_column_ranges<F>(&self, bounds: &[u32], values: &mut [Real], fill: &F)
+    where
+        F: Fn(std::ops::Range<u32>, &mut [Real], usize) + Sync,
+    {
+        let (Some(&first), Some(_)) = (bounds.first(), bounds.last()) else { return };
+        let base = self.col_ptr[3 * first as usize];
+        self.column_ranges(bounds, &mut values[base..], base, fill);
+    }
+
+    fn column_ranges<F>(&self, bounds: &[u32], values: &mut [Real], base: usize, fill: &F)
+    where
+        F: Fn(std::ops::Range<u32>, &mut [Real], usize) + Sync,
+    {
+        if bounds.len() > 2 {
+            let mid = bounds.len() / 2;
+            let split = self.col_ptr[3 * bounds[mid] as usize] - base;
+            let (low, high) = values.split_at_mut(split);
+            rayon::join(
+                || self.column_ranges(&bounds[..=mid], low, base, fill),
+                || self.column_ranges(&bounds[mid..], high, base + split, fill),
+            );
+        } else if let [start, end] = *bounds {
+            let len = self.col_ptr[3 * end as usize] - base;
+            fill(start..end, &mut values[..len], base);
+        }
+    }
+
     /// Adds the 3×3 block `m` (row-major `m[r][c]`) times `scale` at node pair `(i, j)` whose rank
     /// is known.
     #[inline]

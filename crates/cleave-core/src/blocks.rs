@@ -352,59 +352,32 @@ impl BlockSet {
         ranks: &BlockRanks,
         values: &mut [Real],
     ) {
-        self.add_columns(rotations, scale, pattern, ranks, &ranks.chunk_bounds, values, 0);
-    }
-
-    /// The columns of nodes `bounds[0]..bounds[last]` into `values`, whose first entry is the
-    /// pattern's entry `base`: split at the middle bound with `rayon::join` (no allocation).
-    #[allow(clippy::too_many_arguments)]
-    fn add_columns(
-        &self,
-        rotations: &[Matrix3<Real>],
-        scale: Real,
-        pattern: &AssemblyPattern,
-        ranks: &BlockRanks,
-        bounds: &[u32],
-        values: &mut [Real],
-        base: usize,
-    ) {
-        if bounds.len() > 2 {
-            let mid = bounds.len() / 2;
-            let split = pattern.col_ptr()[3 * bounds[mid] as usize] - base;
-            let (low, high) = values.split_at_mut(split);
-            rayon::join(
-                || self.add_columns(rotations, scale, pattern, ranks, &bounds[..=mid], low, base),
-                || self.add_columns(rotations, scale, pattern, ranks, &bounds[mid..], high, base + split),
-            );
-            return;
-        }
-        let (Some(&start), Some(&end)) = (bounds.first(), bounds.last()) else {
-            return;
-        };
         let col_ptr = pattern.col_ptr();
-        for j in start..end {
-            let columns = [0, 1, 2].map(|c| col_ptr[3 * j as usize + c] - base);
-            for &(b, bj) in ranks.column(j) {
-                let block = self.block(b as usize);
-                let n = block.nodes.len();
-                let bj = bj as usize;
-                let block_ranks = &ranks.block(b as usize)[bj * n..(bj + 1) * n];
-                let r = block.frame.map(|f| rotations[f as usize]);
-                for (bi, &rank) in block_ranks.iter().enumerate() {
-                    let kij: Matrix3<Real> = block.rest.fixed_view::<3, 3>(3 * bi, 3 * bj).into_owned();
-                    let m = match r {
-                        Some(r) => r * kij * r.transpose(),
-                        None => kij,
-                    };
-                    for (c, &column) in columns.iter().enumerate() {
-                        let at = column + 3 * rank as usize;
-                        for row in 0..3 {
-                            values[at + row] += scale * m[(row, c)];
+        pattern.for_column_ranges(&ranks.chunk_bounds, values, &|nodes, values, base| {
+            for j in nodes {
+                let columns = [0, 1, 2].map(|c| col_ptr[3 * j as usize + c] - base);
+                for &(b, bj) in ranks.column(j) {
+                    let block = self.block(b as usize);
+                    let n = block.nodes.len();
+                    let bj = bj as usize;
+                    let block_ranks = &ranks.block(b as usize)[bj * n..(bj + 1) * n];
+                    let r = block.frame.map(|f| rotations[f as usize]);
+                    for (bi, &rank) in block_ranks.iter().enumerate() {
+                        let kij: Matrix3<Real> = block.rest.fixed_view::<3, 3>(3 * bi, 3 * bj).into_owned();
+                        let m = match r {
+                            Some(r) => r * kij * r.transpose(),
+                            None => kij,
+                        };
+                        for (c, &column) in columns.iter().enumerate() {
+                            let at = column + 3 * rank as usize;
+                            for row in 0..3 {
+                                values[at + row] += scale * m[(row, c)];
+                            }
                         }
                     }
                 }
             }
-        }
+        });
     }
 }
 

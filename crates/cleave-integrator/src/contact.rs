@@ -345,22 +345,17 @@ impl ContactSet {
                 .par_chunks(1024)
                 .map(|block| {
                     let (mut rings, mut lengths) = (Vec::new(), Vec::with_capacity(block.len()));
+                    let mut ring: Vec<u32> = Vec::with_capacity(32);
                     for &i in block {
-                        let start = rings.len();
-                        rings.push(i as u32);
-                        rings.extend(
+                        ring.clear();
+                        ring.push(i as u32);
+                        ring.extend(
                             around[offsets[i]..offsets[i + 1]].iter().flat_map(|&t| surface.triangles[t as usize]),
                         );
-                        rings[start..].sort_unstable();
-                        let mut kept = start;
-                        for k in start..rings.len() {
-                            if k == start || rings[k] != rings[kept - 1] {
-                                rings[kept] = rings[k];
-                                kept += 1;
-                            }
-                        }
-                        rings.truncate(kept);
-                        lengths.push(kept - start);
+                        ring.sort_unstable();
+                        ring.dedup();
+                        rings.extend_from_slice(&ring);
+                        lengths.push(ring.len());
                     }
                     (rings, lengths)
                 })
@@ -419,7 +414,7 @@ impl ContactSet {
         })
     }
 
-    /// The surface's edges, their faces, the feature edges and each component's edges.
+    /// The surface's edges, their faces, each triangle's edges and the feature edges.
     fn find_edges(&mut self, triangles: &[[u32; 3]]) {
         // Every side of every triangle as (lower point, higher point, triangle, side), sorted:
         // the sides of one edge are consecutive.
@@ -1139,57 +1134,35 @@ impl RefitScratch {
 }
 
 /// Adds `(w wᵀ) ⊗ P` of every contact to the assembled matrix, whose pattern holds every
-/// contact row's couplings (see [`missing_couplings`]). In parallel over ranges of column nodes:
-/// each task owns the values of its columns (contiguous in the column-major storage) and writes
-/// the blocks of every contact whose column node is its own, so no two tasks write one entry.
+/// contact row's couplings (see [`missing_couplings`]). In parallel over [`COLUMN_RANGES`]
+/// ranges of column nodes ([`AssemblyPattern::for_column_ranges`]): each task writes the blocks
+/// of every contact whose column node is its own.
 pub(crate) fn add_matrix(points: &Embedding, set: &ContactSet, pattern: &AssemblyPattern, values: &mut [Real]) {
-    let tasks = 2 * rayon::current_num_threads();
     let nodes = pattern.num_nodes();
     if set.contacts.is_empty() || nodes == 0 {
         return;
     }
+    let bounds: [u32; COLUMN_RANGES + 1] = std::array::from_fn(|k| (k * nodes / COLUMN_RANGES) as u32);
     let col_ptr = pattern.col_ptr();
-    // Node ranges `[lo, hi)` with their slices of `values`, cut at column starts.
-    fn add_range(
-        points: &Embedding,
-        set: &ContactSet,
-        pattern: &AssemblyPattern,
-        (lo, hi): (usize, usize),
-        values: &mut [Real],
-        base: usize,
-        tasks: usize,
-    ) {
-        let col_ptr = pattern.col_ptr();
-        if tasks > 1 && hi - lo > 1 {
-            let mid = lo + (hi - lo) / 2;
-            let (low, high) = values.split_at_mut(col_ptr[3 * mid] - base);
-            rayon::join(
-                || add_range(points, set, pattern, (lo, mid), low, base, tasks / 2),
-                || add_range(points, set, pattern, (mid, hi), high, col_ptr[3 * mid], tasks - tasks / 2),
-            );
-            return;
-        }
+    pattern.for_column_ranges(&bounds, values, &|columns, values, base| {
         let mut entries: Vec<(u32, Real)> = Vec::with_capacity(16);
         for c in &set.contacts {
             entries.clear();
             for_each_entry(points, c, |n, w| entries.push((n, w)));
-            if !entries.iter().any(|&(j, _)| (lo..hi).contains(&(j as usize))) {
+            if !entries.iter().any(|&(j, _)| columns.contains(&j)) {
                 continue;
             }
             // One entry per node, weights summed: the corners of a triangle mostly lie in one
             // duplicate, so 16 entries are often 4 to 8 nodes (`w wᵀ` is the same matrix).
             entries.sort_unstable_by_key(|e| e.0);
-            let mut kept = 0;
-            for k in 0..entries.len() {
-                if kept > 0 && entries[kept - 1].0 == entries[k].0 {
-                    entries[kept - 1].1 += entries[k].1;
-                } else {
-                    entries[kept] = entries[k];
-                    kept += 1;
+            entries.dedup_by(|next, kept| {
+                let same = next.0 == kept.0;
+                if same {
+                    kept.1 += next.1;
                 }
-            }
-            entries.truncate(kept);
-            for &(j, wj) in entries.iter().filter(|&&(j, _)| (lo..hi).contains(&(j as usize))) {
+                same
+            });
+            for &(j, wj) in entries.iter().filter(|&&(j, _)| columns.contains(&j)) {
                 for &(i, wi) in &entries {
                     let rank = pattern.rank(i, j).expect("the pattern holds every contact row's couplings");
                     for col in 0..3 {
@@ -1201,9 +1174,11 @@ pub(crate) fn add_matrix(points: &Embedding, set: &ContactSet, pattern: &Assembl
                 }
             }
         }
-    }
-    add_range(points, set, pattern, (0, nodes), &mut values[..col_ptr[3 * nodes]], 0, tasks);
+    });
 }
+
+/// Column ranges the contact blocks are assembled over (a few per core of a small machine).
+const COLUMN_RANGES: usize = 8;
 
 /// `out += Σ (w wᵀ ⊗ P) p` over the contacts (the full rows: matrix-free path).
 pub(crate) fn add_action(points: &Embedding, contacts: &[Contact], p: &[Real], out: &mut [Real]) {
