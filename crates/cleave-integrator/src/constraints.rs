@@ -151,7 +151,7 @@ pub struct SurfaceContact {
     pub thickness: Real,
     /// How far from a triangle a point is still tested, beyond its motion in the step [m].
     pub reach: Real,
-    /// Whether the sharp (feature) edges of each piece are also tested against the edges of the
+    /// Whether the sharp (feature) edges of each piece are also tested against the sharp edges of the
     /// other pieces (edge–edge contact; docs/math/contact.md §2). Without it, two edges that
     /// cross between the surface points of both pass into each other until points meet faces.
     pub edge_contact: bool,

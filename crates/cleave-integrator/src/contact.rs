@@ -173,8 +173,11 @@ pub(crate) struct ContactSet {
     edge_faces: Vec<[u32; 2]>,
     /// Per triangle, the edge from its vertex `k` to vertex `k + 1` (for the edge pseudonormals).
     triangle_edges: Vec<[u32; 3]>,
-    is_feature: Vec<bool>,
     feature_edges: Vec<u32>,
+    /// Per surface component its feature edges (indices into `edges`), with a bounding volume
+    /// hierarchy over each list (built at the first step of an epoch, refit every step).
+    component_feature_edges: Vec<Vec<u32>>,
+    bvh_edges: Vec<Bvh>,
     per_edge: Vec<Option<Contact>>,
     /// Normal force of the last step per (collider, point): planes, then meshes, then the
     /// surface; what friction is proportional to.
@@ -457,7 +460,10 @@ impl ContactSet {
             }
             self.edges.push([group[0].0, group[0].1]);
             self.edge_faces.push([group[0].2, group.get(1).map_or(group[0].2, |g| g.2)]);
-            self.is_feature.push(feature);
+        }
+        self.component_feature_edges = vec![Vec::new(); self.component_points.len()];
+        for &e in &self.feature_edges {
+            self.component_feature_edges[self.component[self.edges[e as usize][0] as usize] as usize].push(e);
         }
     }
 
@@ -683,6 +689,7 @@ impl ContactSet {
         }
         self.roots_all.clear();
         self.roots_all.extend(self.bvh_all.iter().map(Bvh::root_aabb));
+
         let mut per_point = std::mem::take(&mut self.per_point);
         let mut near = std::mem::take(&mut self.near);
         near.clear();
@@ -850,12 +857,40 @@ impl ContactSet {
         self.per_point = per_point;
     }
 
-    /// Edge–edge contacts: each feature edge against the edges of the other pieces, where the
-    /// closest points of the two lines lie inside both edges and the two pieces' faces at the
+    /// Edge–edge contacts: each feature edge against the feature edges of the other pieces, where
+    /// the closest points of the two lines lie inside both edges and the two pieces' faces at the
     /// edges oppose along the common normal `e_a × e_b` (docs/math/contact.md §2). The closest
-    /// active pair per feature edge; a pair of two feature edges is taken from the lower one.
+    /// active pair per feature edge; a pair is taken from its lower-numbered edge.
     fn detect_edges(&mut self, surface: &crate::constraints::SurfaceContact, h: Real, first_slot: usize) {
         let (positions, velocities) = (&self.positions, &self.velocities);
+        // Leaf box of a feature edge: its ends, the reach, and their motion relative to their
+        // piece's mean velocity in one step (as the triangles' boxes, `detect_surface`).
+        let (component, component_velocity) = (&self.component, &self.component_velocity);
+        let leaf = |g: u32| -> Aabb {
+            let [p, q] = self.edges[g as usize];
+            let w = component_velocity[component[p as usize] as usize];
+            let speed = (velocities[p as usize] - w).norm().max((velocities[q as usize] - w).norm());
+            let margin = Vector3::repeat(surface.reach + h * speed);
+            let (p, q) = (positions[p as usize], positions[q as usize]);
+            Aabb::new(to_parry(&(p.inf(&q) - margin)), to_parry(&(p.sup(&q) + margin)))
+        };
+        if self.bvh_edges.is_empty() {
+            self.bvh_edges = self
+                .component_feature_edges
+                .par_iter()
+                .map(|list| {
+                    let leaves: Vec<Aabb> = list.iter().map(|&g| leaf(g)).collect();
+                    Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves)
+                })
+                .collect();
+        } else {
+            self.bvh_edges.par_iter_mut().zip(self.component_feature_edges.par_iter()).for_each(|(bvh, list)| {
+                for (k, &g) in list.iter().enumerate() {
+                    bvh.insert_or_update_partially(leaf(g), k as u32, 0.0);
+                }
+                bvh.refit_without_opt();
+            });
+        }
         let mut per_edge = std::mem::take(&mut self.per_edge);
         per_edge.clear();
         per_edge.resize(self.feature_edges.len(), None);
@@ -876,11 +911,8 @@ impl ContactSet {
             // The closest active pair.
             let mut best: Option<(Real, Contact)> = None;
             let which = (ContactKind::Edge, (first_slot + k) as u32, this.lagged[first_slot + k]);
-            // The other pieces' edges through their triangle trees (refit by `detect_surface`
-            // this step): a triangle's leaf box holds each of its edges with at least the
-            // edge's own margin, and each edge is taken from its first triangle only.
-            for (b, (bvh, list)) in this.bvh_all.iter().zip(&this.component_triangles).enumerate() {
-                if b == own {
+            for (b, (bvh, list)) in this.bvh_edges.iter().zip(&this.component_feature_edges).enumerate() {
+                if b == own || list.is_empty() {
                     continue;
                 }
                 let w = this.component_velocity[b];
@@ -890,14 +922,8 @@ impl ContactSet {
                 if !this.roots_all[b].intersects(&query) {
                     continue;
                 }
-                let owned = |t: u32| {
-                    this.triangle_edges[t as usize]
-                        .into_iter()
-                        .filter(move |&g| this.edge_faces[g as usize][0] == t)
-                        .map(|g| g as usize)
-                };
-                for g in bvh.intersect_aabb(&query).flat_map(|leaf| owned(list[leaf as usize])) {
-                    if this.is_feature[g] && g < e {
+                for g in bvh.intersect_aabb(&query).map(|leaf| list[leaf as usize] as usize) {
+                    if g < e {
                         continue;
                     }
                     let other = this.edges[g].map(|i| positions[i as usize]);
