@@ -709,9 +709,11 @@ impl ContactSet {
                 if vertex_normal == Vector3::zeros() {
                     return;
                 }
+                // The point's path over the step relative to piece `b` (the reach and the
+                // triangles' own motion are in their boxes): what it may meet is ahead of it.
                 let query = |b: usize| {
-                    let motion = Vector3::repeat(h * (u - this.component_velocity[b]).norm());
-                    Aabb::new(to_parry(&(q - motion)), to_parry(&(q + motion)))
+                    let ahead = q + (u - this.component_velocity[b]) * h;
+                    Aabb::new(to_parry(&q.inf(&ahead)), to_parry(&q.sup(&ahead)))
                 };
                 let own = this.component[i] as usize;
                 // Per searched surface its pair for this point; the smallest gap wins.
@@ -915,10 +917,13 @@ impl ContactSet {
                 if b == own || list.is_empty() {
                     continue;
                 }
+                // Both ends' paths over the step relative to piece `b`.
                 let w = this.component_velocity[b];
-                let motion = Vector3::repeat(h * (speeds[0] - w).norm().max((speeds[1] - w).norm()));
-                let query =
-                    Aabb::new(to_parry(&(ends[0].inf(&ends[1]) - motion)), to_parry(&(ends[0].sup(&ends[1]) + motion)));
+                let ahead = [ends[0] + (speeds[0] - w) * h, ends[1] + (speeds[1] - w) * h];
+                let query = Aabb::new(
+                    to_parry(&ends[0].inf(&ends[1]).inf(&ahead[0]).inf(&ahead[1])),
+                    to_parry(&ends[0].sup(&ends[1]).sup(&ahead[0]).sup(&ahead[1])),
+                );
                 if !this.roots_all[b].intersects(&query) {
                     continue;
                 }
