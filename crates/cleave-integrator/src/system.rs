@@ -1,6 +1,8 @@
 //! The assembled system path: the sparsity pattern, block and pin-row ranks, pinned-entry
-//! positions and the Cholesky symbolic factorization, all built once per epoch; per step only
-//! values are written and refactorized.
+//! positions and the Cholesky symbolic factorization, all built once per pattern; per step only
+//! values are written and refactorized. The symbolic factorization of a new pattern is computed
+//! beside the first fill of its values ([`AssembledSystem::fill_beside_symbolic`]): both need
+//! only the pattern, and the ordering and symbolic analysis run on one thread.
 
 use crate::constraints::Constraints;
 use crate::error::StepErrorKind;
@@ -59,6 +61,8 @@ pub(crate) struct AssembledSystem {
     pinned_off_diagonal: Vec<usize>,
     pinned_diagonal: Vec<usize>,
     cholesky: Option<SparseCholesky>,
+    /// The Cholesky path's symbolic factorization of this pattern is still to be computed.
+    symbolic_pending: bool,
 }
 
 impl AssembledSystem {
@@ -89,11 +93,11 @@ impl AssembledSystem {
         constraints: &Constraints,
     ) -> Result<Self, StepErrorKind> {
         let pattern = self.pattern.with_groups(couplings.iter().map(Vec::as_slice));
-        Self::on_pattern(pattern, discretization, constraints, self.cholesky.is_some())
+        Self::on_pattern(pattern, discretization, constraints, self.cholesky.is_some() || self.symbolic_pending)
     }
 
-    /// Ranks, pinned positions, values and (with `with_cholesky`) the symbolic factorization on
-    /// `pattern`.
+    /// Ranks, pinned positions and values on `pattern`; with `with_cholesky` its symbolic
+    /// factorization is pending (computed beside the first fill, or by the first factorization).
     pub(crate) fn on_pattern(
         pattern: AssemblyPattern,
         discretization: &dyn Discretization,
@@ -123,9 +127,45 @@ impl AssembledSystem {
                 }
             }
         }
-        let cholesky = if with_cholesky { Some(SparseCholesky::new(&pattern)?) } else { None };
         let values = pattern.new_values();
-        Ok(Self { pattern, block_ranks, pin_ranks, values, pinned_off_diagonal, pinned_diagonal, cholesky })
+        Ok(Self {
+            pattern,
+            block_ranks,
+            pin_ranks,
+            values,
+            pinned_off_diagonal,
+            pinned_diagonal,
+            cholesky: None,
+            symbolic_pending: with_cholesky,
+        })
+    }
+
+    /// Whether the next [`fill_beside_symbolic`](Self::fill_beside_symbolic) also computes the
+    /// symbolic factorization of a new pattern.
+    pub(crate) fn symbolic_pending(&self) -> bool {
+        self.symbolic_pending
+    }
+
+    /// Writes the values with `fill` (given the system and its values) and, where this pattern's
+    /// symbolic factorization is pending, computes it at the same time on the other thread.
+    pub(crate) fn fill_beside_symbolic<T: Send>(
+        &mut self,
+        fill: impl FnOnce(&Self, &mut [Real]) -> T + Send,
+    ) -> Result<T, StepErrorKind> {
+        let mut values = std::mem::take(&mut self.values);
+        let this = &*self;
+        let (symbolic, out) = if self.symbolic_pending {
+            let (symbolic, out) = rayon::join(|| SparseCholesky::new(&this.pattern), || fill(this, &mut values));
+            (Some(symbolic), out)
+        } else {
+            (None, fill(this, &mut values))
+        };
+        self.values = values;
+        if let Some(symbolic) = symbolic {
+            self.cholesky = Some(symbolic?);
+            self.symbolic_pending = false;
+        }
+        Ok(out)
     }
 
     /// Number of nonzeros of the factor, if factorized.
@@ -141,36 +181,55 @@ impl AssembledSystem {
         mass_scale: Real,
         stiffness_scale: Real,
     ) {
-        self.values.fill(0.0);
-        discretization.blocks().add_to_matrix(
-            rotations,
-            stiffness_scale,
-            &self.pattern,
-            &self.block_ranks,
-            &mut self.values,
-        );
+        let mut values = std::mem::take(&mut self.values);
+        self.fill_values(&mut values, discretization, rotations, mass_scale, stiffness_scale);
+        self.values = values;
+    }
+
+    /// [`fill`](Self::fill) into `values` (this pattern's).
+    pub(crate) fn fill_values(
+        &self,
+        values: &mut [Real],
+        discretization: &dyn Discretization,
+        rotations: &[Matrix3<Real>],
+        mass_scale: Real,
+        stiffness_scale: Real,
+    ) {
+        values.fill(0.0);
+        discretization.blocks().add_to_matrix(rotations, stiffness_scale, &self.pattern, &self.block_ranks, values);
         let mass = discretization.mass().diagonal();
         for node in 0..self.pattern.num_nodes() as u32 {
             let rank = self.pattern.rank(node, node).expect("diagonal is in the pattern");
             for c in 0..3 {
                 let d = 3 * node as usize + c;
-                self.values[self.pattern.position(rank, node, c, c)] += mass_scale * mass[d];
+                values[self.pattern.position(rank, node, c, c)] += mass_scale * mass[d];
             }
         }
     }
 
     /// Replaces pinned rows and columns by those of the identity.
     pub(crate) fn apply_pins(&mut self) {
+        let mut values = std::mem::take(&mut self.values);
+        self.apply_pins_to(&mut values);
+        self.values = values;
+    }
+
+    /// [`apply_pins`](Self::apply_pins) on `values` (this pattern's).
+    pub(crate) fn apply_pins_to(&self, values: &mut [Real]) {
         for &p in &self.pinned_off_diagonal {
-            self.values[p] = 0.0;
+            values[p] = 0.0;
         }
         for &p in &self.pinned_diagonal {
-            self.values[p] = 1.0;
+            values[p] = 1.0;
         }
     }
 
-    /// Numeric factorization on the cached symbolic one.
+    /// Numeric factorization on the cached symbolic one (computed first if still pending).
     pub(crate) fn factorize(&mut self) -> Result<(), StepErrorKind> {
+        if self.symbolic_pending {
+            self.cholesky = Some(SparseCholesky::new(&self.pattern)?);
+            self.symbolic_pending = false;
+        }
         let cholesky = self.cholesky.as_mut().expect("factorize needs the Cholesky storage");
         Ok(cholesky.factorize(&self.values)?)
     }
