@@ -18,7 +18,9 @@ use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
 use faer::perm::PermRef;
 use faer::sparse::linalg::amd;
-use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky};
+use faer::sparse::linalg::cholesky::{
+    LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering, factorize_symbolic_cholesky, supernodal,
+};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use std::collections::HashMap;
@@ -46,6 +48,90 @@ pub struct SparseCholesky {
     scratch: MemBuffer,
     factored: bool,
     order_groups: usize,
+    /// For a supernodal factor: the matrix's lower triangle in elimination order (once per
+    /// pattern).
+    permuted: Option<PermutedLower>,
+}
+
+/// The lower triangle of `P A Pᵀ` as the supernodal factorization reads it, and for each of its
+/// entries the position of its value in the pattern's values. faer's `factorize_numeric_llt`
+/// builds this matrix again at every factorization (`permute_self_adjoint_to_unsorted`, 3–4 ms
+/// a step on `bunny_slice.ron`: counting, prefix sums and scatter over both triangles); with the
+/// structure kept per pattern a factorization only gathers the values.
+struct PermutedLower {
+    matrix: SymbolicSparseColMat<usize>,
+    source: Vec<usize>,
+    values: Vec<Real>,
+}
+
+impl PermutedLower {
+    /// The entries `A[i][j]` with `i ≥ j` (the lower triangle faer reads with `Side::Lower`),
+    /// each at row `max(p(i), p(j))`, column `min(p(i), p(j))` of the permuted matrix, `p` the
+    /// new index of an old one: the same entries faer's permutation keeps, so the factor is the
+    /// same bit for bit. Built column by column of the new order at the node level (the order
+    /// keeps a node's three components consecutive); `None` for an order that does not.
+    fn new(pattern: &AssemblyPattern, perm_inv: &[usize]) -> Option<Self> {
+        let nodes = pattern.num_nodes();
+        let new_node: Vec<usize> = (0..nodes).map(|n| perm_inv[3 * n] / 3).collect();
+        if (0..3 * nodes).any(|d| perm_inv[d] != 3 * new_node[d / 3] + d % 3) {
+            return None;
+        }
+        let mut old_node = vec![0u32; nodes];
+        for (n, &p) in new_node.iter().enumerate() {
+            old_node[p] = n as u32;
+        }
+        // Rank of node j in the list of each of its neighbours i (the lists are sorted and
+        // symmetric: visiting j in increasing order meets each list's entries in order).
+        let mut offsets = Vec::with_capacity(nodes + 1);
+        offsets.push(0);
+        for j in 0..nodes as u32 {
+            offsets.push(offsets[j as usize] + pattern.neighbours(j).len());
+        }
+        let mut cursor = vec![0u32; nodes];
+        let mut transposed_rank = vec![0u32; offsets[nodes]];
+        for j in 0..nodes as u32 {
+            for (r, &i) in pattern.neighbours(j).iter().enumerate() {
+                transposed_rank[offsets[j as usize] + r] = cursor[i as usize];
+                cursor[i as usize] += 1;
+            }
+        }
+        let dim = 3 * nodes;
+        let mut col_ptr = Vec::with_capacity(dim + 1);
+        let mut row_idx = Vec::with_capacity(pattern.nnz() / 2 + dim);
+        let mut source = Vec::with_capacity(pattern.nnz() / 2 + dim);
+        col_ptr.push(0);
+        for (p, &j) in old_node.iter().enumerate() {
+            let neighbours = pattern.neighbours(j);
+            let ranks_in_theirs = &transposed_rank[offsets[j as usize]..offsets[j as usize + 1]];
+            for b in 0..3 {
+                for ((rank, &i), &rank_in_theirs) in neighbours.iter().enumerate().zip(ranks_in_theirs) {
+                    let q = new_node[i as usize];
+                    if q < p {
+                        continue;
+                    }
+                    for a in 0..3 {
+                        let k = if i == j {
+                            if a < b {
+                                continue;
+                            }
+                            pattern.position(rank as u32, j, a, b)
+                        } else if i > j {
+                            pattern.position(rank as u32, j, a, b)
+                        } else {
+                            // Old row 3j + b below old column 3i + a: stored in column i.
+                            pattern.position(rank_in_theirs, i, b, a)
+                        };
+                        row_idx.push(3 * q + a);
+                        source.push(k);
+                    }
+                }
+                col_ptr.push(row_idx.len());
+            }
+        }
+        let values = vec![0.0; source.len()];
+        let matrix = SymbolicSparseColMat::new_unsorted_checked(dim, dim, col_ptr, None, row_idx);
+        Some(Self { matrix, source, values })
+    }
 }
 
 impl std::fmt::Debug for SparseCholesky {
@@ -76,22 +162,37 @@ impl SparseCholesky {
             SymbolicSparseColMat::new_checked(dim, dim, pattern.col_ptr().to_vec(), None, pattern.row_idx().to_vec());
         let graph = QuotientGraph::new(pattern);
         let ordering = graph.expand(&graph.amd()?);
-        let symbolic = factorize_symbolic_cholesky(
-            matrix.as_ref(),
-            Side::Lower,
-            SymmetricOrdering::Custom(PermRef::new_checked(&ordering.perm, &ordering.perm_inv, dim)),
-            Default::default(),
-        )
-        .map_err(|e| CholeskyError::Setup(format!("symbolic factorization: {e:?}")))?;
+        // The permuted lower triangle beside the symbolic analysis (both sequential; on a busy
+        // pool the second waits for a free thread).
+        let (symbolic, permuted) = rayon::join(
+            || {
+                factorize_symbolic_cholesky(
+                    matrix.as_ref(),
+                    Side::Lower,
+                    SymmetricOrdering::Custom(PermRef::new_checked(&ordering.perm, &ordering.perm_inv, dim)),
+                    Default::default(),
+                )
+            },
+            || PermutedLower::new(pattern, &ordering.perm_inv),
+        );
+        let symbolic = symbolic.map_err(|e| CholeskyError::Setup(format!("symbolic factorization: {e:?}")))?;
+        let permuted = permuted.filter(|_| matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)));
         let order_groups = ordering.groups;
         let par = parallelism();
+        let supernodal_scratch = match symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(raw) => {
+                supernodal::factorize_supernodal_numeric_llt_scratch::<usize, Real>(raw, par, Default::default())
+            }
+            SymbolicCholeskyRaw::Simplicial(_) => StackReq::empty(),
+        };
         let scratch = MemBuffer::try_new(StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<Real>(par, Default::default()),
+            supernodal_scratch,
             symbolic.solve_in_place_scratch::<Real>(1, par),
         ]))
         .map_err(|_| CholeskyError::Setup("out of memory for the Cholesky workspace".into()))?;
         let factor_values = crate::assembly::resident_zeros(symbolic.len_val());
-        Ok(Self { matrix, symbolic, factor_values, scratch, factored: false, order_groups })
+        Ok(Self { matrix, symbolic, factor_values, scratch, factored: false, order_groups, permuted })
     }
 
     /// Nonzeros of the factor `L`.
@@ -107,20 +208,37 @@ impl SparseCholesky {
     /// Numeric factorization of the matrix with `values` on the pattern (both triangles stored;
     /// the lower one is read).
     pub fn factorize(&mut self, values: &[Real]) -> Result<(), CholeskyError> {
-        let matrix = SparseColMatRef::new(self.matrix.as_ref(), values);
-        let result = self.symbolic.factorize_numeric_llt::<Real>(
-            &mut self.factor_values,
-            matrix,
-            Side::Lower,
-            LltRegularization::default(),
-            parallelism(),
-            MemStack::new(&mut self.scratch),
-            Default::default(),
-        );
+        let result = match (&mut self.permuted, self.symbolic.raw()) {
+            (Some(permuted), SymbolicCholeskyRaw::Supernodal(raw)) => {
+                for (value, &k) in permuted.values.iter_mut().zip(&permuted.source) {
+                    *value = values[k];
+                }
+                supernodal::factorize_supernodal_numeric_llt::<usize, Real>(
+                    &mut self.factor_values,
+                    SparseColMatRef::new(permuted.matrix.as_ref(), &permuted.values),
+                    LltRegularization::default(),
+                    raw,
+                    parallelism(),
+                    MemStack::new(&mut self.scratch),
+                    Default::default(),
+                )
+                .map(|_| ())
+            }
+            _ => self
+                .symbolic
+                .factorize_numeric_llt::<Real>(
+                    &mut self.factor_values,
+                    SparseColMatRef::new(self.matrix.as_ref(), values),
+                    Side::Lower,
+                    LltRegularization::default(),
+                    parallelism(),
+                    MemStack::new(&mut self.scratch),
+                    Default::default(),
+                )
+                .map(|_| ()),
+        };
         self.factored = result.is_ok();
-        result
-            .map(|_| ())
-            .map_err(|LltError::NonPositivePivot { index }| CholeskyError::NotPositiveDefinite { pivot: index })
+        result.map_err(|LltError::NonPositivePivot { index }| CholeskyError::NotPositiveDefinite { pivot: index })
     }
 
     /// Solves `A x = rhs` in place with the last successful factorization, on all cores.
@@ -314,5 +432,83 @@ mod tests {
         // A negative shift larger than the smallest Laplacian eigenvalue (0) makes it indefinite.
         let (_, indefinite) = chain_system(-0.1);
         assert!(matches!(cholesky.factorize(&indefinite), Err(CholeskyError::NotPositiveDefinite { .. })));
+    }
+
+    /// A 7×7×7 grid of nodes coupled by its 6³ cubes (8 nodes each), values `Laplacian ⊗ B`
+    /// plus a shift, with every entry above the diagonal then nudged: large enough that faer
+    /// chooses a supernodal factor, and no longer symmetric bit for bit, so reading the wrong
+    /// triangle would show.
+    fn grid_system() -> (AssemblyPattern, Vec<Real>) {
+        let n = 7u32;
+        let node = |x: u32, y: u32, z: u32| x + n * (y + n * z);
+        let cubes: Vec<[u32; 8]> = (0..n - 1)
+            .flat_map(|z| (0..n - 1).flat_map(move |y| (0..n - 1).map(move |x| (x, y, z))))
+            .map(|(x, y, z)| {
+                [0, 1, 2, 3, 4, 5, 6, 7].map(|c| node(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)))
+            })
+            .collect();
+        let nodes = (n * n * n) as usize;
+        let pattern = AssemblyPattern::from_groups(nodes, cubes.iter().map(|g| &g[..]));
+        let mut values = vec![0.0; pattern.nnz()];
+        let b = Matrix3::new(2.0, 0.5, 0.0, 0.5, 3.0, 0.25, 0.0, 0.25, 1.5);
+        for cube in &cubes {
+            for &i in cube {
+                for &j in cube {
+                    let weight = if i == j { 7.0 } else { -1.0 };
+                    pattern.add_block(&mut values, pattern.rank(i, j).unwrap(), j, &b, weight);
+                }
+            }
+        }
+        for j in 0..nodes as u32 {
+            pattern.add_block(&mut values, pattern.rank(j, j).unwrap(), j, &Matrix3::identity(), 0.5);
+        }
+        for col in 0..pattern.dim() {
+            for k in pattern.col_ptr()[col]..pattern.col_ptr()[col + 1] {
+                if pattern.row_idx()[k] < col {
+                    values[k] *= 1.0 + 1e-9;
+                }
+            }
+        }
+        (pattern, values)
+    }
+
+    #[test]
+    fn the_kept_permuted_triangle_gives_faers_own_factor_bit_for_bit() {
+        let (pattern, values) = grid_system();
+        let mut cholesky = SparseCholesky::new(&pattern).unwrap();
+        assert!(cholesky.permuted.is_some(), "a supernodal factor keeps the permuted triangle");
+        cholesky.factorize(&values).unwrap();
+        let mut faers = vec![0.0; cholesky.factor_values.len()];
+        cholesky
+            .symbolic
+            .factorize_numeric_llt::<Real>(
+                &mut faers,
+                SparseColMatRef::new(cholesky.matrix.as_ref(), &values),
+                Side::Lower,
+                LltRegularization::default(),
+                Par::Seq,
+                MemStack::new(&mut cholesky.scratch),
+                Default::default(),
+            )
+            .unwrap();
+        assert!(cholesky.factor_values.iter().zip(&faers).all(|(a, b)| a.to_bits() == b.to_bits()));
+        // And it solves the lower triangle's system (the one both read) to round-off.
+        let dim = pattern.dim();
+        let x_true: Vec<Real> = (0..dim).map(|i| (i as Real * 0.37).sin()).collect();
+        let mut rhs = vec![0.0; dim];
+        for col in 0..dim {
+            for k in pattern.col_ptr()[col]..pattern.col_ptr()[col + 1] {
+                let row = pattern.row_idx()[k];
+                if row >= col {
+                    rhs[row] += values[k] * x_true[col];
+                    if row > col {
+                        rhs[col] += values[k] * x_true[row];
+                    }
+                }
+            }
+        }
+        cholesky.solve_in_place(&mut rhs);
+        let error = rhs.iter().zip(&x_true).map(|(a, t)| (a - t).abs()).fold(0.0, Real::max);
+        assert!(error < 1e-10, "max error {error}");
     }
 }
