@@ -157,6 +157,13 @@ pub(crate) struct ContactSet {
     component_cut_triangles: Vec<Vec<u32>>,
     bvh_all: Vec<Bvh>,
     bvh_cut: Vec<Bvh>,
+    /// Per surface component: its triangle count and a hash of its triangles' rest corners in
+    /// list order. A component of the next epoch with the same fingerprint is the same surface
+    /// (a piece the cut did not touch) and takes this epoch's tree instead of building one.
+    component_fingerprint: Vec<(usize, u64)>,
+    /// Trees taken from the previous epoch for the components that match one of its own
+    /// ([`ContactSet::reuse_trees`]), until the first detection refits them.
+    reused_trees: Vec<Option<Bvh>>,
     /// This step's root box of every `bvh_all` tree: a query misses a piece
     /// whose root it misses, without setting up a traversal (most pieces are far from most
     /// points).
@@ -313,6 +320,18 @@ impl ContactSet {
                     set.component_cut_triangles[c].push(t as u32);
                 }
             }
+            set.component_fingerprint = set
+                .component_triangles
+                .par_iter()
+                .map(|list| {
+                    let hash = list.iter().flat_map(|&t| surface.triangles[t as usize]).fold(0u64, |hash, k| {
+                        set.rest[k as usize]
+                            .iter()
+                            .fold(hash, |h, x| (h.rotate_left(5) ^ x.to_bits()).wrapping_mul(0x517c_c1b7_2722_0a95))
+                    });
+                    (list.len(), hash)
+                })
+                .collect();
             let both: Vec<bool> = (0..set.component_cut_triangles.len())
                 .into_par_iter()
                 .map(|c| set.holds_both_faces_of_a_cut(c, &surface.triangles))
@@ -374,6 +393,21 @@ impl ContactSet {
             set.find_edges(&surface.triangles);
         }
         set
+    }
+
+    /// Takes the triangle trees of `previous` (the last epoch's set) for the components whose
+    /// fingerprint matches one of its own: a cut leaves most pieces as they were, and building
+    /// their trees again cost most of a cut step's contact search. A matching tree is correct
+    /// whatever the match (the first detection refits every box from the new surface; a tree
+    /// over as many leaves is valid for any of them), and as good as a new one when the
+    /// triangles are the same.
+    pub fn reuse_trees(&mut self, previous: ContactSet) {
+        if previous.bvh_all.len() != previous.component_fingerprint.len() {
+            return;
+        }
+        let mut trees: std::collections::HashMap<(usize, u64), Bvh> =
+            previous.component_fingerprint.into_iter().zip(previous.bvh_all).collect();
+        self.reused_trees = self.component_fingerprint.iter().map(|key| trees.remove(key)).collect();
     }
 
     /// Whether component `c` holds both faces of some cut: two of its cut triangles coincide in
@@ -656,14 +690,27 @@ impl ContactSet {
         };
         let lists = self.component_triangles.iter().chain(&self.component_cut_triangles);
         if self.bvh_all.is_empty() {
-            // Built at the first step of an epoch, one tree per task.
-            let mut all: Vec<Bvh> = self
-                .component_triangles
-                .par_iter()
-                .chain(self.component_cut_triangles.par_iter())
-                .map(|list| {
-                    let leaves: Vec<Aabb> = list.iter().map(|&t| leaf(&triangles[t as usize])).collect();
-                    Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves)
+            // Built at the first step of an epoch, one tree per task; a tree taken from the
+            // last epoch is refit instead.
+            let mut reused = std::mem::take(&mut self.reused_trees);
+            reused.resize_with(self.component_triangles.len(), || None);
+            let mut all: Vec<Bvh> = reused
+                .into_par_iter()
+                .map(Some)
+                .chain(self.component_cut_triangles.par_iter().map(|_| None))
+                .zip(self.component_triangles.par_iter().chain(self.component_cut_triangles.par_iter()))
+                .map(|(reused, list)| match reused.flatten() {
+                    Some(mut bvh) => {
+                        for (k, &t) in list.iter().enumerate() {
+                            bvh.insert_or_update_partially(leaf(&triangles[t as usize]), k as u32, 0.0);
+                        }
+                        bvh.refit_without_opt();
+                        bvh
+                    }
+                    None => {
+                        let leaves: Vec<Aabb> = list.iter().map(|&t| leaf(&triangles[t as usize])).collect();
+                        Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves)
+                    }
                 })
                 .collect();
             self.bvh_cut = all.split_off(self.component_triangles.len());
