@@ -129,6 +129,9 @@ pub struct ContactStats {
     pub seconds: Real,
 }
 
+/// Per contact, its (node, weight) entries with one entry per node: offsets and entries (CSR).
+type MergedEntries = (Vec<usize>, Vec<(u32, Real)>);
+
 /// Per-epoch contact structures and per-step scratch.
 #[derive(Default)]
 pub(crate) struct ContactSet {
@@ -189,6 +192,8 @@ pub(crate) struct ContactSet {
     /// Normal force of the last step per (collider, point): planes, then meshes, then the
     /// surface; what friction is proportional to.
     lagged: Vec<Real>,
+    /// [`add_matrix`]'s scratch: per contact its merged (node, weight) entries (CSR).
+    matrix_entries: std::sync::Mutex<MergedEntries>,
 }
 
 impl std::fmt::Debug for ContactSet {
@@ -1222,26 +1227,39 @@ pub(crate) fn add_matrix(points: &Embedding, set: &ContactSet, pattern: &Assembl
     }
     let bounds: [u32; COLUMN_RANGES + 1] = std::array::from_fn(|k| (k * nodes / COLUMN_RANGES) as u32);
     let col_ptr = pattern.col_ptr();
-    pattern.for_column_ranges(&bounds, values, &|columns, values, base| {
-        let mut entries: Vec<(u32, Real)> = Vec::with_capacity(16);
-        for c in &set.contacts {
-            entries.clear();
-            for_each_entry(points, c, |n, w| entries.push((n, w)));
-            if !entries.iter().any(|&(j, _)| columns.contains(&j)) {
-                continue;
-            }
-            // One entry per node, weights summed: the corners of a triangle mostly lie in one
-            // duplicate, so 16 entries are often 4 to 8 nodes (`w wᵀ` is the same matrix).
-            entries.sort_unstable_by_key(|e| e.0);
-            entries.dedup_by(|next, kept| {
-                let same = next.0 == kept.0;
-                if same {
-                    kept.1 += next.1;
+    // Every contact's entries once, for all column ranges: one entry per node, weights summed
+    // (the corners of a triangle mostly lie in one duplicate, so 16 entries are often 4 to 8
+    // nodes; `w wᵀ` is the same matrix).
+    let mut scratch = set.matrix_entries.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    let (offsets, all) = &mut *scratch;
+    offsets.clear();
+    all.clear();
+    offsets.push(0);
+    for c in &set.contacts {
+        let start = all.len();
+        for_each_entry(points, c, |n, w| all.push((n, w)));
+        let entries = &mut all[start..];
+        entries.sort_unstable_by_key(|e| e.0);
+        let mut kept = 0;
+        for k in 0..entries.len() {
+            if k > 0 && entries[k].0 == entries[kept].0 {
+                entries[kept].1 += entries[k].1;
+            } else {
+                if k > 0 {
+                    kept += 1;
                 }
-                same
-            });
+                entries[kept] = entries[k];
+            }
+        }
+        all.truncate(start + kept + 1);
+        offsets.push(all.len());
+    }
+    let (offsets, all) = (&*offsets, &*all);
+    pattern.for_column_ranges(&bounds, values, &|columns, values, base| {
+        for (c, range) in set.contacts.iter().zip(offsets.windows(2)) {
+            let entries = &all[range[0]..range[1]];
             for &(j, wj) in entries.iter().filter(|&&(j, _)| columns.contains(&j)) {
-                for &(i, wi) in &entries {
+                for &(i, wi) in entries {
                     let rank = pattern.rank(i, j).expect("the pattern holds every contact row's couplings");
                     for col in 0..3 {
                         let at = col_ptr[3 * j as usize + col] + 3 * rank as usize - base;
