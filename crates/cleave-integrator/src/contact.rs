@@ -581,28 +581,23 @@ impl ContactSet {
         let mut per_point = std::mem::take(&mut self.per_point);
         per_point.resize(n, None);
         let (positions, velocities, lagged) = (&self.positions, &self.velocities, &self.lagged);
+        // Planes in one sequential pass per plane: a dot product per point, and the few points
+        // at the plane become contacts (a parallel pass through a slot per point cost more in
+        // writing and scanning the slots than the test itself).
         for (k, plane) in constraints.planes.iter().enumerate() {
             let params = (plane.stiffness, plane.damping, plane.friction);
             let g = plane.normal.dot(gravity);
-            per_point.par_iter_mut().enumerate().for_each(|(i, slot_of_point)| {
-                *slot_of_point = {
-                    let offset = -plane.normal.dot(&plane.point.coords);
-                    let d = plane.normal.dot(&positions[i].coords) + offset;
-                    let slot = k * n + i;
-                    let which = (ContactKind::Plane, slot as u32, lagged[slot]);
-                    make_contact(
-                        Row::point(i as u32),
-                        which,
-                        plane.normal,
-                        (d, offset, 0.0),
-                        &velocities[i],
-                        g,
-                        h,
-                        params,
-                    )
+            let offset = -plane.normal.dot(&plane.point.coords);
+            for (i, (q, u)) in positions.iter().zip(velocities).enumerate() {
+                let d = plane.normal.dot(&q.coords) + offset;
+                let slot = k * n + i;
+                let which = (ContactKind::Plane, slot as u32, lagged[slot]);
+                if let Some(contact) =
+                    make_contact(Row::point(i as u32), which, plane.normal, (d, offset, 0.0), u, g, h, params)
+                {
+                    self.contacts.push(contact);
                 }
-            });
-            self.contacts.extend(per_point.iter().flatten().copied());
+            }
         }
         for (k, mesh) in constraints.meshes.iter().enumerate() {
             let k = constraints.planes.len() + k;
