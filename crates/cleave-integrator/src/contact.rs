@@ -140,6 +140,8 @@ pub(crate) struct ContactSet {
     velocities: Vec<Vector3<Real>>,
     vertex_normals: Vec<Vector3<Real>>,
     triangle_normals: Vec<Vector3<Real>>,
+    /// This step's `(b − a) × (c − a)` of every surface triangle.
+    triangle_area_normals: Vec<Vector3<Real>>,
     /// One-ring of every surface point (CSR), itself included: pairs excluded by adjacency.
     ring_offsets: Vec<usize>,
     ring: Vec<u32>,
@@ -650,17 +652,21 @@ impl ContactSet {
         // of one smooth surface never push on its own nearby triangles.
         self.vertex_normals.clear();
         self.vertex_normals.resize(positions.len(), Vector3::zeros());
-        let area_normal = |t: u32| {
-            let [a, b, c] = triangles[t as usize].map(|i| positions[i as usize]);
-            (b - a).cross(&(c - a))
-        };
-        (0..triangles.len() as u32)
-            .into_par_iter()
-            .map(|t| area_normal(t).try_normalize(0.0).unwrap_or_else(Vector3::zeros))
-            .collect_into_vec(&mut self.triangle_normals);
-        let (offsets, around) = (&self.vertex_triangle_offsets, &self.vertex_triangles);
+        // Each triangle's area normal once (the vertex normals sum them), then its unit normal.
+        self.triangle_area_normals.resize(triangles.len(), Vector3::zeros());
+        self.triangle_normals.resize(triangles.len(), Vector3::zeros());
+        self.triangle_area_normals.par_iter_mut().zip(self.triangle_normals.par_iter_mut()).zip(triangles).for_each(
+            |((area_normal, normal), triangle)| {
+                let [a, b, c] = triangle.map(|i| positions[i as usize]);
+                *area_normal = (b - a).cross(&(c - a));
+                *normal = area_normal.try_normalize(0.0).unwrap_or_else(Vector3::zeros);
+            },
+        );
+        let (offsets, around, area_normals) =
+            (&self.vertex_triangle_offsets, &self.vertex_triangles, &self.triangle_area_normals);
         self.vertex_normals.par_iter_mut().enumerate().for_each(|(i, normal)| {
-            *normal = around[offsets[i]..offsets[i + 1]].iter().fold(Vector3::zeros(), |s, &t| s + area_normal(t));
+            *normal =
+                around[offsets[i]..offsets[i + 1]].iter().fold(Vector3::zeros(), |s, &t| s + area_normals[t as usize]);
         });
         // Motion is bounded relative to the mean velocity `w_b` of the piece searched:
         // |u_q − u_t| ≤ |u_q − w_b| + |u_t − w_b|, the second in the leaf boxes, the first in
