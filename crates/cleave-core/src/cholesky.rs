@@ -394,28 +394,35 @@ mod tests {
         }
     }
 
-    /// The matrix `Σ_groups (I_g ⊗ B)` plus a diagonal shift, with `B` a fixed SPD 3×3 block
-    /// on every node pair of a group: SPD for a positive shift.
-    fn chain_system(shift: Real) -> (AssemblyPattern, Vec<Real>) {
-        let groups: Vec<[u32; 2]> = (0..9).map(|i| [i, i + 1]).collect();
-        let pattern = AssemblyPattern::from_groups(10, groups.iter().map(|g| &g[..]));
+    /// The matrix `Σ_groups (L_g ⊗ B)` plus `shift · I`, with `L_g` the complete graph
+    /// Laplacian of a group (`|g| − 1` on the diagonal, −1 off it) and `B` a fixed SPD 3×3
+    /// block: positive semidefinite, SPD for a positive shift.
+    fn group_laplacian_system<const N: usize>(
+        nodes: usize,
+        groups: &[[u32; N]],
+        shift: Real,
+    ) -> (AssemblyPattern, Vec<Real>) {
+        let pattern = AssemblyPattern::from_groups(nodes, groups.iter().map(|g| &g[..]));
         let mut values = vec![0.0; pattern.nnz()];
         let b = Matrix3::new(2.0, 0.5, 0.0, 0.5, 3.0, 0.25, 0.0, 0.25, 1.5);
-        for g in &groups {
-            // A graph Laplacian per group, ⊗ B: PSD; the shift makes it definite.
+        for g in groups {
             for &i in g {
                 for &j in g {
-                    let sign = if i == j { 1.0 } else { -1.0 };
-                    let rank = pattern.rank(i, j).unwrap();
-                    pattern.add_block(&mut values, rank, j, &b, sign);
+                    let weight = if i == j { (N - 1) as Real } else { -1.0 };
+                    pattern.add_block(&mut values, pattern.rank(i, j).unwrap(), j, &b, weight);
                 }
             }
         }
-        for j in 0..10u32 {
-            let rank = pattern.rank(j, j).unwrap();
-            pattern.add_block(&mut values, rank, j, &Matrix3::identity(), shift);
+        for j in 0..nodes as u32 {
+            pattern.add_block(&mut values, pattern.rank(j, j).unwrap(), j, &Matrix3::identity(), shift);
         }
         (pattern, values)
+    }
+
+    /// A chain of 10 nodes coupled in pairs.
+    fn chain_system(shift: Real) -> (AssemblyPattern, Vec<Real>) {
+        let groups: Vec<[u32; 2]> = (0..9).map(|i| [i, i + 1]).collect();
+        group_laplacian_system(10, &groups, shift)
     }
 
     #[test]
@@ -447,21 +454,7 @@ mod tests {
                 [0, 1, 2, 3, 4, 5, 6, 7].map(|c| node(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)))
             })
             .collect();
-        let nodes = (n * n * n) as usize;
-        let pattern = AssemblyPattern::from_groups(nodes, cubes.iter().map(|g| &g[..]));
-        let mut values = vec![0.0; pattern.nnz()];
-        let b = Matrix3::new(2.0, 0.5, 0.0, 0.5, 3.0, 0.25, 0.0, 0.25, 1.5);
-        for cube in &cubes {
-            for &i in cube {
-                for &j in cube {
-                    let weight = if i == j { 7.0 } else { -1.0 };
-                    pattern.add_block(&mut values, pattern.rank(i, j).unwrap(), j, &b, weight);
-                }
-            }
-        }
-        for j in 0..nodes as u32 {
-            pattern.add_block(&mut values, pattern.rank(j, j).unwrap(), j, &Matrix3::identity(), 0.5);
-        }
+        let (pattern, mut values) = group_laplacian_system((n * n * n) as usize, &cubes, 0.5);
         for col in 0..pattern.dim() {
             for k in pattern.col_ptr()[col]..pattern.col_ptr()[col + 1] {
                 if pattern.row_idx()[k] < col {

@@ -204,6 +204,21 @@ impl std::fmt::Debug for ContactSet {
     }
 }
 
+/// A tree over `leaves` (leaf `k` is the `k`-th box).
+fn build_tree(leaves: impl Iterator<Item = Aabb>) -> Bvh {
+    let leaves: Vec<Aabb> = leaves.collect();
+    Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves)
+}
+
+/// Sets every leaf's box of `bvh` (leaf `k` the `k`-th of `leaves`, as many as it has) and
+/// refits the inner boxes, in place on one thread.
+fn refit_in_place(bvh: &mut Bvh, leaves: impl Iterator<Item = Aabb>) {
+    for (k, aabb) in leaves.enumerate() {
+        bvh.insert_or_update_partially(aabb, k as u32, 0.0);
+    }
+    bvh.refit_without_opt();
+}
+
 fn to_parry(p: &Point3<Real>) -> ParryVector {
     ParryVector::new(p.x, p.y, p.z)
 }
@@ -705,17 +720,14 @@ impl ContactSet {
                 .map(Some)
                 .chain(self.component_cut_triangles.par_iter().map(|_| None))
                 .zip(self.component_triangles.par_iter().chain(self.component_cut_triangles.par_iter()))
-                .map(|(reused, list)| match reused.flatten() {
-                    Some(mut bvh) => {
-                        for (k, &t) in list.iter().enumerate() {
-                            bvh.insert_or_update_partially(leaf(&triangles[t as usize]), k as u32, 0.0);
+                .map(|(reused, list)| {
+                    let leaves = list.iter().map(|&t| leaf(&triangles[t as usize]));
+                    match reused.flatten() {
+                        Some(mut bvh) => {
+                            refit_in_place(&mut bvh, leaves);
+                            bvh
                         }
-                        bvh.refit_without_opt();
-                        bvh
-                    }
-                    None => {
-                        let leaves: Vec<Aabb> = list.iter().map(|&t| leaf(&triangles[t as usize])).collect();
-                        Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves)
+                        None => build_tree(leaves),
                     }
                 })
                 .collect();
@@ -728,10 +740,7 @@ impl ContactSet {
             let lists_par = self.component_triangles.par_iter().chain(self.component_cut_triangles.par_iter());
             self.bvh_all.par_iter_mut().chain(self.bvh_cut.par_iter_mut()).zip(lists_par).for_each(|(bvh, list)| {
                 if list.len() < PARALLEL_REFIT_LEAVES {
-                    for (k, &t) in list.iter().enumerate() {
-                        bvh.insert_or_update_partially(leaf(&triangles[t as usize]), k as u32, 0.0);
-                    }
-                    bvh.refit_without_opt();
+                    refit_in_place(bvh, list.iter().map(|&t| leaf(&triangles[t as usize])));
                 }
             });
             for (bvh, list) in self.bvh_all.iter_mut().chain(self.bvh_cut.iter_mut()).zip(lists) {
@@ -928,21 +937,13 @@ impl ContactSet {
             Aabb::new(to_parry(&(p.inf(&q) - margin)), to_parry(&(p.sup(&q) + margin)))
         };
         if self.bvh_edges.is_empty() {
-            self.bvh_edges = self
-                .component_feature_edges
-                .par_iter()
-                .map(|list| {
-                    let leaves: Vec<Aabb> = list.iter().map(|&g| leaf(g)).collect();
-                    Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves)
-                })
-                .collect();
+            self.bvh_edges =
+                self.component_feature_edges.par_iter().map(|list| build_tree(list.iter().map(|&g| leaf(g)))).collect();
         } else {
-            self.bvh_edges.par_iter_mut().zip(self.component_feature_edges.par_iter()).for_each(|(bvh, list)| {
-                for (k, &g) in list.iter().enumerate() {
-                    bvh.insert_or_update_partially(leaf(g), k as u32, 0.0);
-                }
-                bvh.refit_without_opt();
-            });
+            self.bvh_edges
+                .par_iter_mut()
+                .zip(self.component_feature_edges.par_iter())
+                .for_each(|(bvh, list)| refit_in_place(bvh, list.iter().map(|&g| leaf(g))));
         }
         let mut per_edge = std::mem::take(&mut self.per_edge);
         per_edge.clear();
