@@ -155,6 +155,8 @@ pub(crate) struct ContactSet {
     /// Points per component, and this step's mean velocity of each.
     component_points: Vec<u32>,
     component_velocity: Vec<Vector3<Real>>,
+    /// This step's largest speed of a point of each component relative to its mean velocity.
+    component_spread: Vec<Real>,
     /// Per surface component: its triangles, and those on a cut (indices into the surface's
     /// triangles), with a bounding volume hierarchy over each list (built at the first step of
     /// an epoch, refit every step).
@@ -217,6 +219,11 @@ fn refit_in_place(bvh: &mut Bvh, leaves: impl Iterator<Item = Aabb>) {
         bvh.insert_or_update_partially(aabb, k as u32, 0.0);
     }
     bvh.refit_without_opt();
+}
+
+/// Squared distance from `q` to the box from `lo` to `hi` (zero inside it).
+fn squared_distance_to_box(q: ParryVector, lo: ParryVector, hi: ParryVector) -> Real {
+    (lo - q).max(q - hi).max(ParryVector::ZERO).length_squared()
 }
 
 fn to_parry(p: &Point3<Real>) -> ParryVector {
@@ -575,6 +582,28 @@ impl ContactSet {
         }
     }
 
+    /// The triangles at the feature of triangle `t` that holds its point at barycentrics
+    /// `beta` (as [`Self::pseudonormal`]), in index order: `t` inside it, the faces of an edge,
+    /// every triangle around a corner.
+    fn feature_triangles(&self, triangles: &[[u32; 3]], t: usize, beta: &[Real; 3], out: &mut Vec<u32>) {
+        out.clear();
+        match beta.iter().filter(|&&b| b == 0.0).count() {
+            0 => out.push(t as u32),
+            1 => {
+                let k = (0..3).find(|&k| beta[(k + 2) % 3] == 0.0).unwrap_or(0);
+                out.extend(self.edge_faces[self.triangle_edges[t][k] as usize]);
+            }
+            _ => {
+                let corner = triangles[t][(0..3).max_by(|&a, &b| beta[a].total_cmp(&beta[b])).unwrap_or(0)];
+                let range =
+                    self.vertex_triangle_offsets[corner as usize]..self.vertex_triangle_offsets[corner as usize + 1];
+                out.extend_from_slice(&self.vertex_triangles[range]);
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+    }
+
     fn excluded(&self, point: u32, triangle: &[u32; 3]) -> bool {
         let ring = &self.ring[self.ring_offsets[point as usize]..self.ring_offsets[point as usize + 1]];
         // The triangle contains the point or a neighbour of it: a neighbouring triangle's vertex.
@@ -695,17 +724,29 @@ impl ContactSet {
         for (w, &count) in self.component_velocity.iter_mut().zip(&self.component_points) {
             *w /= count.max(1) as Real;
         }
+        self.component_spread.clear();
+        self.component_spread.resize(self.component_points.len(), 0.0);
+        for (i, &c) in self.component.iter().enumerate() {
+            let spread = &mut self.component_spread[c as usize];
+            *spread = spread.max((velocities[i] - self.component_velocity[c as usize]).norm());
+        }
         let (component, component_velocity) = (&self.component, &self.component_velocity);
-        let leaf = |t: &[u32; 3]| -> Aabb {
+        // A leaf box of a piece's whole surface is the triangle's own (the nearest-triangle
+        // search below bounds its radius by the motion); a leaf box of its cut faces holds the
+        // reach and the triangle's motion relative to the piece (the own-cut query is a box).
+        let num_whole = self.component_triangles.len();
+        let leaf = |t: &[u32; 3], tree: usize| -> Aabb {
             let mut lo = positions[t[0] as usize];
             let mut hi = lo;
-            let mut speed: Real = 0.0;
-            let w = component_velocity[component[t[0] as usize] as usize];
             for &i in t {
                 lo = lo.inf(&positions[i as usize]);
                 hi = hi.sup(&positions[i as usize]);
-                speed = speed.max((velocities[i as usize] - w).norm());
             }
+            if tree < num_whole {
+                return Aabb::new(to_parry(&lo), to_parry(&hi));
+            }
+            let w = component_velocity[component[t[0] as usize] as usize];
+            let speed = t.iter().map(|&i| (velocities[i as usize] - w).norm()).fold(0.0, Real::max);
             let margin = Vector3::repeat(surface.reach + h * speed);
             Aabb::new(to_parry(&(lo - margin)), to_parry(&(hi + margin)))
         };
@@ -720,8 +761,9 @@ impl ContactSet {
                 .map(Some)
                 .chain(self.component_cut_triangles.par_iter().map(|_| None))
                 .zip(self.component_triangles.par_iter().chain(self.component_cut_triangles.par_iter()))
-                .map(|(reused, list)| {
-                    let leaves = list.iter().map(|&t| leaf(&triangles[t as usize]));
+                .enumerate()
+                .map(|(tree, (reused, list))| {
+                    let leaves = list.iter().map(|&t| leaf(&triangles[t as usize], tree));
                     match reused.flatten() {
                         Some(mut bvh) => {
                             refit_in_place(&mut bvh, leaves);
@@ -738,14 +780,16 @@ impl ContactSet {
             // on bunny_slice's 22 trees 1.45 against 2.7 ms/step for each tree in turn spread
             // over the pool); a tree too large to be one task uses parry's parallel update.
             let lists_par = self.component_triangles.par_iter().chain(self.component_cut_triangles.par_iter());
-            self.bvh_all.par_iter_mut().chain(self.bvh_cut.par_iter_mut()).zip(lists_par).for_each(|(bvh, list)| {
-                if list.len() < PARALLEL_REFIT_LEAVES {
-                    refit_in_place(bvh, list.iter().map(|&t| leaf(&triangles[t as usize])));
-                }
-            });
-            for (bvh, list) in self.bvh_all.iter_mut().chain(self.bvh_cut.iter_mut()).zip(lists) {
+            self.bvh_all.par_iter_mut().chain(self.bvh_cut.par_iter_mut()).zip(lists_par).enumerate().for_each(
+                |(tree, (bvh, list))| {
+                    if list.len() < PARALLEL_REFIT_LEAVES {
+                        refit_in_place(bvh, list.iter().map(|&t| leaf(&triangles[t as usize], tree)));
+                    }
+                },
+            );
+            for (tree, (bvh, list)) in self.bvh_all.iter_mut().chain(self.bvh_cut.iter_mut()).zip(lists).enumerate() {
                 if list.len() >= PARALLEL_REFIT_LEAVES {
-                    self.refit.refit(bvh, list.len(), |k| leaf(&triangles[list[k] as usize]));
+                    self.refit.refit(bvh, list.len(), |k| leaf(&triangles[list[k] as usize], tree));
                 }
             }
         }
@@ -761,10 +805,9 @@ impl ContactSet {
         let lateral = LATERAL_FRACTION * surface.reach;
         per_point.clear();
         per_point.resize(positions.len(), None);
-        let scratch = Vec::<(Real, u32)>::new;
         per_point.par_iter_mut().zip(near.par_iter_mut()).enumerate().for_each_init(
-            scratch,
-            |found, (i, (slot, near))| {
+            Vec::new,
+            |at_feature: &mut Vec<u32>, (i, (slot, near))| {
                 let q = positions[i];
                 let u = velocities[i];
                 let vertex_normal = this.vertex_normals[i];
@@ -835,60 +878,83 @@ impl ContactSet {
                 // faces the wrong way, as a facing filter does, made points on or beside another
                 // piece's rim "penetrate" a face beyond the rim by up to the reach (most of the
                 // deep contacts after a cut through touching pieces: docs/math/contact.md §5).
+                let q_parry = to_parry(&q);
                 for b in 0..this.bvh_all.len() {
-                    let query = query(b);
-                    if b == own || !this.roots_all[b].intersects(&query) {
+                    // The nearest triangle within the largest reach any triangle of the piece can
+                    // have (`consider` below), by branch and bound on the triangles' own boxes:
+                    // what is found depends on the triangles only, not on boxes, so not on how the
+                    // scene is turned. Per triangle the reach is the surface's plus the step's
+                    // approach, h(|u − v_t| + max_k |v_k − v_t|) with v_t the velocity of its point
+                    // (a mean of its corners'), which is at most h(|u − w_b| + 3 s_b) with w_b the
+                    // piece's mean velocity and s_b its points' largest speed relative to it.
+                    let radius =
+                        surface.reach + h * ((u - this.component_velocity[b]).norm() + 3.0 * this.component_spread[b]);
+                    let root = &this.roots_all[b];
+                    if b == own || squared_distance_to_box(q_parry, root.mins, root.maxs) >= radius * radius {
                         continue;
                     }
                     let list = &this.component_triangles[b];
-                    let mut nearest: Option<(Real, usize, Point3<Real>, [Real; 3])> = None;
-                    // The distance to a triangle's plane bounds the distance to it from below: the
-                    // candidates by that bound, nearest first, until the bound passes the nearest
-                    // triangle found (on bunny_slice 3 in 4 candidates needed the closest point in
-                    // the order the tree gave them).
-                    found.clear();
-                    found.extend(this.bvh_all[b].intersect_aabb(&query).map(|leaf| {
-                        let t = list[leaf as usize];
-                        let corner = positions[triangles[t as usize][0] as usize];
-                        (this.triangle_normals[t as usize].dot(&(q - corner)).abs(), t)
-                    }));
-                    found.sort_by(|x, y| x.0.total_cmp(&y.0));
-                    for &(to_plane, t) in found.iter() {
-                        if nearest.is_some_and(|b| to_plane >= b.0) {
-                            break;
-                        }
-                        let corners = triangles[t as usize].map(|k| positions[k as usize]);
-                        let (c, beta) = closest_point_on_triangle(&q, &corners);
-                        let distance = (q - c).norm();
-                        if nearest.is_none_or(|b| distance < b.0) {
-                            nearest = Some((distance, t as usize, c, beta));
-                        }
-                    }
-                    let Some((distance, t, c, beta)) = nearest else { continue };
+                    let nearest = this.bvh_all[b].find_best(
+                        radius * radius,
+                        |node, _| squared_distance_to_box(q_parry, node.mins(), node.maxs()),
+                        |leaf, _| {
+                            let t = list[leaf as usize] as usize;
+                            let corners = triangles[t].map(|k| positions[k as usize]);
+                            let (c, beta) = closest_point_on_triangle(&q, &corners);
+                            Some(((q - c).norm_squared(), (t, c, beta)))
+                        },
+                    );
+                    let Some((_, (distance_squared, (t, c, beta)))) = nearest else { continue };
+                    let distance = distance_squared.sqrt();
+                    // Every triangle at the nearest feature is nearest (a corner's, an edge's faces):
+                    // the pair is decided over all of them, so it does not depend on which one the
+                    // search met first (its order, or rounding between the faces of an edge).
+                    this.feature_triangles(triangles, t, &beta, at_feature);
                     let offset = q - c;
-                    // Inside by the pseudonormal, and behind the nearest triangle's own plane: where
+                    // The feature's triangles with their own closest points (the same point up to
+                    // rounding), in index order.
+                    let on_triangle = |o: u32| {
+                        if o as usize == t {
+                            return (c, beta);
+                        }
+                        closest_point_on_triangle(&q, &triangles[o as usize].map(|k| positions[k as usize]))
+                    };
+                    // Inside by the pseudonormal, and behind every face at the nearest feature: where
                     // an edge or corner of a piece is not manifold (two regions of one piece meeting
                     // there), its pseudonormal can say inside for a point beside it, and a point
                     // inside near a reflex edge or corner, the only inside points whose nearest
                     // feature is not a face, is behind every face there.
-                    let behind = this.triangle_normals[t].dot(&offset) < 0.0;
+                    let behind = at_feature.iter().all(|&o| this.triangle_normals[o as usize].dot(&offset) < 0.0);
                     if distance > 1e-9 * surface.reach
                         && behind
                         && offset.dot(&this.pseudonormal(triangles, t, &beta)) < 0.0
                     {
-                        // Inside: pushed out along the shortest way, whatever feature is nearest.
-                        consider(Candidate { gap: -distance, distance, triangle: t, beta, normal: -offset / distance });
+                        // Inside: pushed out along the shortest way, whatever feature is nearest (held
+                        // by the feature's first triangle).
+                        let first = at_feature[0];
+                        let (_, beta) = on_triangle(first);
+                        let normal = -offset / distance;
+                        consider(Candidate { gap: -distance, distance, triangle: first as usize, beta, normal });
                     } else {
-                        // Outside or touching: only a face it projects into and that faces it. An
-                        // edge or corner nearest from outside is no contact yet (its direction
-                        // q − c says little about where the point will meet the surface: a point
-                        // 2 cm beside an edge, closing along x, would get a sideways push), and no
-                        // farther triangle stands in for it.
-                        let normal = this.triangle_normals[t];
-                        if vertex_normal.dot(&normal) < 0.0
-                            && contact_normal(&q, &c, &normal, distance, lateral).is_some()
-                        {
-                            consider(Candidate { gap: normal.dot(&offset), distance, triangle: t, beta, normal });
+                        // Outside or touching: only a face it projects into and that faces it, the
+                        // smallest gap among the feature's faces. An edge or corner nearest from
+                        // outside is no contact yet (its direction q − c says little about where the
+                        // point will meet the surface: a point 2 cm beside an edge, closing along x,
+                        // would get a sideways push), and no farther triangle stands in for it.
+                        let mut facing: Option<Candidate> = None;
+                        for &o in at_feature.iter() {
+                            let normal = this.triangle_normals[o as usize];
+                            let (c, beta) = on_triangle(o);
+                            let gap = normal.dot(&(q - c));
+                            if vertex_normal.dot(&normal) < 0.0
+                                && contact_normal(&q, &c, &normal, distance, lateral).is_some()
+                                && facing.as_ref().is_none_or(|f| gap < f.gap)
+                            {
+                                facing = Some(Candidate { gap, distance, triangle: o as usize, beta, normal });
+                            }
+                        }
+                        if let Some(candidate) = facing {
+                            consider(candidate);
                         }
                     }
                 }
@@ -926,7 +992,7 @@ impl ContactSet {
     fn detect_edges(&mut self, surface: &crate::constraints::SurfaceContact, h: Real, first_slot: usize) {
         let (positions, velocities) = (&self.positions, &self.velocities);
         // Leaf box of a feature edge: its ends, the reach, and their motion relative to their
-        // piece's mean velocity in one step (as the triangles' boxes, `detect_surface`).
+        // piece's mean velocity in one step (as the cut triangles' boxes, `detect_surface`).
         let (component, component_velocity) = (&self.component, &self.component_velocity);
         let leaf = |g: u32| -> Aabb {
             let [p, q] = self.edges[g as usize];
@@ -973,7 +1039,9 @@ impl ContactSet {
                 let motion = Vector3::repeat(h * (speeds[0] - w).norm().max((speeds[1] - w).norm()));
                 let query =
                     Aabb::new(to_parry(&(ends[0].inf(&ends[1]) - motion)), to_parry(&(ends[0].sup(&ends[1]) + motion)));
-                if !this.roots_all[b].intersects(&query) {
+                // (The root box is the piece's triangles' own; the leaves of its edge tree lie
+                // within it loosened by the reach and the piece's spread of speeds.)
+                if !this.roots_all[b].loosened(surface.reach + h * this.component_spread[b]).intersects(&query) {
                     continue;
                 }
                 for g in bvh.intersect_aabb(&query).map(|leaf| list[leaf as usize] as usize) {
