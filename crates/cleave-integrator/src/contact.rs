@@ -910,6 +910,15 @@ impl ContactSet {
                     // the pair is decided over all of them, so it does not depend on which one the
                     // search met first (its order, or rounding between the faces of an edge).
                     this.feature_triangles(triangles, t, &beta, at_feature);
+                    // The pair is held by the feature's first triangle, whichever the search found.
+                    let (t, c, beta, distance) = match at_feature[0] as usize {
+                        first if first != t => {
+                            let (c, beta) =
+                                closest_point_on_triangle(&q, &triangles[first].map(|k| positions[k as usize]));
+                            (first, c, beta, (q - c).norm())
+                        }
+                        _ => (t, c, beta, distance),
+                    };
                     let offset = q - c;
                     // The feature's triangles with their own closest points (the same point up to
                     // rounding), in index order.
@@ -929,12 +938,9 @@ impl ContactSet {
                         && behind
                         && offset.dot(&this.pseudonormal(triangles, t, &beta)) < 0.0
                     {
-                        // Inside: pushed out along the shortest way, whatever feature is nearest (held
-                        // by the feature's first triangle).
-                        let first = at_feature[0];
-                        let (_, beta) = on_triangle(first);
+                        // Inside: pushed out along the shortest way, whatever feature is nearest.
                         let normal = -offset / distance;
-                        consider(Candidate { gap: -distance, distance, triangle: first as usize, beta, normal });
+                        consider(Candidate { gap: -distance, distance, triangle: t, beta, normal });
                     } else {
                         // Outside or touching: only a face it projects into and that faces it, the
                         // smallest gap among the feature's faces. An edge or corner nearest from
