@@ -600,6 +600,8 @@ impl ContactSet {
                 out.extend_from_slice(&self.vertex_triangles[range]);
             }
         }
+        // (At an edge of more than two faces `edge_faces` holds two of them: `t` is always one.)
+        out.push(t as u32);
         out.sort_unstable();
         out.dedup();
     }
