@@ -887,8 +887,9 @@ impl ContactSet {
                     // what is found depends on the triangles only, not on boxes, so not on how the
                     // scene is turned. Per triangle the reach is the surface's plus the step's
                     // approach, h(|u − v_t| + max_k |v_k − v_t|) with v_t the velocity of its point
-                    // (a mean of its corners'), which is at most h(|u − w_b| + 3 s_b) with w_b the
-                    // piece's mean velocity and s_b its points' largest speed relative to it.
+                    // (a convex combination of its corners'), which is at most h(|u − w_b| + 3 s_b)
+                    // with w_b the piece's mean velocity and s_b its points' largest speed relative
+                    // to it.
                     let radius =
                         surface.reach + h * ((u - this.component_velocity[b]).norm() + 3.0 * this.component_spread[b]);
                     let root = &this.roots_all[b];
