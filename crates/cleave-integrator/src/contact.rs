@@ -129,6 +129,15 @@ pub struct ContactStats {
     pub seconds: Real,
 }
 
+/// Where on a surface a triangle's nearest point lies ([`ContactSet::feature`]).
+enum Feature {
+    Face,
+    /// A surface edge (index into `ContactSet::edges`).
+    Edge(u32),
+    /// A surface point.
+    Corner(u32),
+}
+
 /// Per contact, its (node, weight) entries with one entry per node: offsets and entries (CSR).
 type MergedEntries = (Vec<usize>, Vec<(u32, Real)>);
 
@@ -551,54 +560,51 @@ impl ContactSet {
     /// against `q − c`, with `c` the nearest surface point, tells whether `q` lies inside a
     /// closed surface (Bærentzen & Aanæs 2005).
     fn pseudonormal(&self, triangles: &[[u32; 3]], t: usize, beta: &[Real; 3]) -> Vector3<Real> {
-        match beta.map(|b| b == 0.0) {
-            [false, false, false] => self.triangle_normals[t],
-            // On the edge from vertex k to k + 1, opposite the zero weight.
-            [false, false, true] | [true, false, false] | [false, true, false] => {
-                let k = if beta[2] == 0.0 {
-                    0
-                } else if beta[0] == 0.0 {
-                    1
-                } else {
-                    2
-                };
-                let [f0, f1] = self.edge_faces[self.triangle_edges[t][k] as usize];
+        match self.feature(triangles, t, beta) {
+            Feature::Face => self.triangle_normals[t],
+            Feature::Edge(e) => {
+                let [f0, f1] = self.edge_faces[e as usize];
                 self.triangle_normals[f0 as usize] + self.triangle_normals[f1 as usize]
             }
-            _ => {
-                // Weighted by each triangle's angle at the corner (area weights are not exact
-                // here); computed only for the rare point whose nearest feature is a corner.
-                let corner = triangles[t][(0..3).max_by(|&a, &b| beta[a].total_cmp(&beta[b])).unwrap_or(0)];
-                let range =
-                    self.vertex_triangle_offsets[corner as usize]..self.vertex_triangle_offsets[corner as usize + 1];
-                self.vertex_triangles[range].iter().fold(Vector3::zeros(), |sum, &u| {
-                    let around = &triangles[u as usize];
-                    let k = (0..3).find(|&k| around[k] == corner).unwrap_or(0);
-                    let p = around.map(|i| self.positions[i as usize]);
-                    let (e1, e2) = (p[(k + 1) % 3] - p[k], p[(k + 2) % 3] - p[k]);
-                    sum + self.triangle_normals[u as usize] * e1.cross(&e2).norm().atan2(e1.dot(&e2))
-                })
-            }
+            // Weighted by each triangle's angle at the corner (area weights are not exact here);
+            // computed only for the rare point whose nearest feature is a corner.
+            Feature::Corner(corner) => self.triangles_around(corner).iter().fold(Vector3::zeros(), |sum, &u| {
+                let around = &triangles[u as usize];
+                let k = (0..3).find(|&k| around[k] == corner).unwrap_or(0);
+                let p = around.map(|i| self.positions[i as usize]);
+                let (e1, e2) = (p[(k + 1) % 3] - p[k], p[(k + 2) % 3] - p[k]);
+                sum + self.triangle_normals[u as usize] * e1.cross(&e2).norm().atan2(e1.dot(&e2))
+            }),
         }
     }
 
+    /// The feature of triangle `t` that holds its point at barycentrics `beta`: the triangle
+    /// itself (no zero weight), the surface edge opposite the one zero weight, or the corner
+    /// of the largest weight (two zero weights).
+    fn feature(&self, triangles: &[[u32; 3]], t: usize, beta: &[Real; 3]) -> Feature {
+        match beta.iter().filter(|&&b| b == 0.0).count() {
+            0 => Feature::Face,
+            // On the edge from vertex k to k + 1, opposite the zero weight.
+            1 => Feature::Edge(self.triangle_edges[t][(0..3).find(|&k| beta[(k + 2) % 3] == 0.0).unwrap_or(0)]),
+            _ => Feature::Corner(triangles[t][(0..3).max_by(|&a, &b| beta[a].total_cmp(&beta[b])).unwrap_or(0)]),
+        }
+    }
+
+    /// The triangles around surface point `corner`.
+    fn triangles_around(&self, corner: u32) -> &[u32] {
+        &self.vertex_triangles
+            [self.vertex_triangle_offsets[corner as usize]..self.vertex_triangle_offsets[corner as usize + 1]]
+    }
+
     /// The triangles at the feature of triangle `t` that holds its point at barycentrics
-    /// `beta` (as [`Self::pseudonormal`]), in index order: `t` inside it, the faces of an edge,
-    /// every triangle around a corner.
+    /// `beta` ([`Self::feature`]), in index order: `t` inside it, the faces of an edge, every
+    /// triangle around a corner.
     fn feature_triangles(&self, triangles: &[[u32; 3]], t: usize, beta: &[Real; 3], out: &mut Vec<u32>) {
         out.clear();
-        match beta.iter().filter(|&&b| b == 0.0).count() {
-            0 => out.push(t as u32),
-            1 => {
-                let k = (0..3).find(|&k| beta[(k + 2) % 3] == 0.0).unwrap_or(0);
-                out.extend(self.edge_faces[self.triangle_edges[t][k] as usize]);
-            }
-            _ => {
-                let corner = triangles[t][(0..3).max_by(|&a, &b| beta[a].total_cmp(&beta[b])).unwrap_or(0)];
-                let range =
-                    self.vertex_triangle_offsets[corner as usize]..self.vertex_triangle_offsets[corner as usize + 1];
-                out.extend_from_slice(&self.vertex_triangles[range]);
-            }
+        match self.feature(triangles, t, beta) {
+            Feature::Face => {}
+            Feature::Edge(e) => out.extend(self.edge_faces[e as usize]),
+            Feature::Corner(corner) => out.extend_from_slice(self.triangles_around(corner)),
         }
         // (At an edge of more than two faces `edge_faces` holds two of them: `t` is always one.)
         out.push(t as u32);
@@ -1577,19 +1583,12 @@ mod tests {
         assert_eq!(format!("{:?}", kept.contacts), format!("{:?}", fresh.contacts));
     }
 
-    /// Surface points of a small tetrahedron tossed around the rim of a thin slab (4 mm, thinner
-    /// than twice the reach) in 3000 random poses: every point–triangle contact of a tetrahedron
-    /// point is exactly the slab's analytic signed distance where the point is inside the slab,
-    /// and there is none where it is outside. A facing filter that skipped the nearest face and
-    /// took a farther one gave points on or beside the rim depths of up to the slab's thickness
-    /// (docs/math/contact.md §5).
-    #[test]
-    fn surface_contact_depth_is_the_signed_distance_of_the_other_piece() {
-        let (size, thick) = (1.0, 0.004);
-        let slab: Vec<[Real; 3]> =
+    /// The box [0, size]² × [0, thick] (corner k at the bits of k) and its 12 triangles,
+    /// outward, counter-clockwise seen from outside.
+    fn slab(size: Real, thick: Real) -> (Vec<[Real; 3]>, Vec<[u32; 3]>) {
+        let corners =
             (0..8).map(|k| [size * (k & 1) as Real, size * ((k >> 1) & 1) as Real, thick * (k >> 2) as Real]).collect();
-        // Outward, counter-clockwise seen from outside.
-        let slab_triangles: [[u32; 3]; 12] = [
+        let triangles = vec![
             [0, 2, 1],
             [1, 2, 3],
             [4, 5, 6],
@@ -1603,15 +1602,59 @@ mod tests {
             [1, 3, 5],
             [3, 7, 5],
         ];
+        (corners, triangles)
+    }
+
+    /// A reproducible sequence of numbers in [0, 1) (a 64-bit linear congruential generator).
+    fn uniform(seed: u64) -> impl FnMut() -> Real {
+        let mut state = seed;
+        move || {
+            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as Real / (1u64 << 53) as Real
+        }
+    }
+
+    /// Surface contact between a slab (points 0–7) and a tetrahedron (points 8–11) at `x`, each
+    /// point its own node, with `triangles` as the surface; the rest shape holds the tetrahedron
+    /// 10 m away, so nothing is behind anything at rest.
+    fn slab_and_tetrahedron(triangles: Vec<[u32; 3]>, x: &[Real]) -> (Constraints, Vec<Real>) {
+        let mut points = Embedding::new();
+        for i in 0..12u32 {
+            points.push_row(&[i], &[1.0]);
+        }
+        let rest = x.iter().enumerate().map(|(i, &c)| if i >= 24 { c + 10.0 } else { c }).collect();
+        let constraints = Constraints {
+            contact_points: Some(points),
+            surface_contact: Some(SurfaceContact {
+                triangles,
+                on_cut: Vec::new(),
+                stiffness: 1e4,
+                damping: 0.0,
+                friction: 0.0,
+                thickness: 0.0,
+                reach: 0.01,
+                edge_contact: false,
+            }),
+            ..Default::default()
+        };
+        (constraints, rest)
+    }
+
+    /// Surface points of a small tetrahedron tossed around the rim of a thin slab (4 mm, thinner
+    /// than twice the reach) in 3000 random poses: every point–triangle contact of a tetrahedron
+    /// point is exactly the slab's analytic signed distance where the point is inside the slab,
+    /// and there is none where it is outside. A facing filter that skipped the nearest face and
+    /// took a farther one gave points on or beside the rim depths of up to the slab's thickness
+    /// (docs/math/contact.md §5).
+    #[test]
+    fn surface_contact_depth_is_the_signed_distance_of_the_other_piece() {
+        let (size, thick) = (1.0, 0.004);
+        let (slab, slab_triangles) = slab(size, thick);
         let inside_depth = |p: &Point3<Real>| {
             let d = [p.x, size - p.x, p.y, size - p.y, p.z, thick - p.z];
             d.iter().all(|&d| d > 0.0).then(|| d.iter().copied().fold(Real::MAX, Real::min))
         };
-        let mut state: u64 = 0x9e37_79b9_7f4a_7c15;
-        let mut random = || {
-            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
-            (state >> 11) as Real / (1u64 << 53) as Real
-        };
+        let mut random = uniform(0x9e37_79b9_7f4a_7c15);
         let (mut inside_points, mut checked) = (0, 0);
         for _ in 0..3000 {
             // A regular tetrahedron of edge ~6 mm, randomly turned, centred within 6 mm of the
@@ -1621,29 +1664,11 @@ mod tests {
             let centre = Vector3::new(size + 0.012 * (random() - 0.5), 0.5, thick * (3.0 * random() - 1.0));
             let corners = [[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]]
                 .map(|c| turn * Vector3::from(c) * 0.002 + centre);
-            let mut points = Embedding::new();
-            for i in 0..12u32 {
-                points.push_row(&[i], &[1.0]);
-            }
             let x: Vec<Real> =
                 slab.iter().flatten().copied().chain(corners.iter().flat_map(|c| [c.x, c.y, c.z])).collect();
-            let rest: Vec<Real> = x.iter().enumerate().map(|(i, &c)| if i >= 24 { c + 10.0 } else { c }).collect();
-            let mut triangles = slab_triangles.to_vec();
+            let mut triangles = slab_triangles.clone();
             triangles.extend([[8, 9, 10], [8, 11, 9], [8, 10, 11], [9, 11, 10]]);
-            let constraints = Constraints {
-                contact_points: Some(points),
-                surface_contact: Some(SurfaceContact {
-                    triangles,
-                    on_cut: Vec::new(),
-                    stiffness: 1e4,
-                    damping: 0.0,
-                    friction: 0.0,
-                    thickness: 0.0,
-                    reach: 0.01,
-                    edge_contact: false,
-                }),
-                ..Default::default()
-            };
+            let (constraints, rest) = slab_and_tetrahedron(triangles, &x);
             let mut set = ContactSet::new(&constraints, &rest);
             set.detect(&constraints, &x, &vec![0.0; x.len()], 0.01, &Vector3::zeros());
             for k in 8..12u32 {
@@ -1681,27 +1706,8 @@ mod tests {
     #[test]
     fn a_pair_at_an_edge_does_not_depend_on_the_order_of_the_triangles() {
         let (size, thick) = (1.0, 0.004);
-        let slab: Vec<[Real; 3]> =
-            (0..8).map(|k| [size * (k & 1) as Real, size * ((k >> 1) & 1) as Real, thick * (k >> 2) as Real]).collect();
-        let slab_triangles: [[u32; 3]; 12] = [
-            [0, 2, 1],
-            [1, 2, 3],
-            [4, 5, 6],
-            [5, 7, 6],
-            [0, 1, 4],
-            [1, 5, 4],
-            [2, 6, 3],
-            [3, 6, 7],
-            [0, 4, 2],
-            [2, 4, 6],
-            [1, 3, 5],
-            [3, 7, 5],
-        ];
-        let mut state: u64 = 0x2545_f491_4f6c_dd1d;
-        let mut random = || {
-            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
-            (state >> 11) as Real / (1u64 << 53) as Real
-        };
+        let (slab, slab_triangles) = slab(size, thick);
+        let mut random = uniform(0x2545_f491_4f6c_dd1d);
         let mut met = 0;
         for trial in 0..200 {
             // A tetrahedron with its apex (point 8) down: the apex's vertex normal points down.
@@ -1716,10 +1722,6 @@ mod tests {
                     apex + Vector3::new(0.002 * angle.cos(), 0.002 * angle.sin(), 0.003)
                 })
                 .collect();
-            let mut points = Embedding::new();
-            for i in 0..12u32 {
-                points.push_row(&[i], &[1.0]);
-            }
             let axis = Vector3::new(random() - 0.5, random() - 0.5, random() - 0.5);
             let turn = nalgebra::Rotation3::new(axis * 6.0);
             let shift = Vector3::new(random() - 0.5, random() - 0.5, random() - 0.5);
@@ -1730,13 +1732,12 @@ mod tests {
                 .chain(std::iter::once(apex).chain(top))
                 .flat_map(|c| place(c).data.0[0])
                 .collect();
-            let rest: Vec<Real> = x.iter().enumerate().map(|(i, &c)| if i >= 24 { c + 10.0 } else { c }).collect();
             let down = turn * -Vector3::z();
             let v: Vec<Real> = (0..x.len()).map(|i| if i >= 24 { down[i % 3] } else { 0.0 }).collect();
             // The three side faces seen from outside, counter-clockwise, and the top.
             let tetrahedron = [[8, 10, 9], [8, 11, 10], [8, 9, 11], [9, 10, 11]];
             for order in 0..4 {
-                let mut triangles = slab_triangles.to_vec();
+                let mut triangles = slab_triangles.clone();
                 if order & 1 == 1 {
                     triangles.reverse();
                 }
@@ -1744,20 +1745,7 @@ mod tests {
                     triangles.iter_mut().for_each(|t| t.rotate_left(1));
                 }
                 triangles.extend(tetrahedron);
-                let constraints = Constraints {
-                    contact_points: Some(points.clone()),
-                    surface_contact: Some(SurfaceContact {
-                        triangles,
-                        on_cut: Vec::new(),
-                        stiffness: 1e4,
-                        damping: 0.0,
-                        friction: 0.0,
-                        thickness: 0.0,
-                        reach: 0.01,
-                        edge_contact: false,
-                    }),
-                    ..Default::default()
-                };
+                let (constraints, rest) = slab_and_tetrahedron(triangles, &x);
                 let mut set = ContactSet::new(&constraints, &rest);
                 set.detect(&constraints, &x, &v, 0.01, &Vector3::zeros());
                 let contact = set.contacts.iter().find(|c| c.kind == ContactKind::Surface && c.row.points[0] == 8);
