@@ -1192,7 +1192,7 @@ impl ContactSet {
 /// scaled by the point's weight in the row. A node may occur more than once (point and
 /// triangle in one element); every sum below treats the entries as a sum, which is exact.
 #[inline]
-fn for_each_entry(points: &Embedding, contact: &Contact, mut visit: impl FnMut(u32, Real)) {
+pub(crate) fn for_each_entry(points: &Embedding, contact: &Contact, mut visit: impl FnMut(u32, Real)) {
     for (point, scale) in contact.row.entries() {
         let (nodes, weights) = points.row(point as usize);
         for (&n, &w) in nodes.iter().zip(weights) {

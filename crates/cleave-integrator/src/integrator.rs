@@ -12,6 +12,7 @@ use crate::cg::CgWorkspace;
 use crate::constraints::Constraints;
 use crate::contact::{self, ContactSet, ContactStats};
 use crate::error::{StepError, StepErrorKind};
+use crate::low_rank::{self, LowRankUpdate};
 use crate::momentum::FreePieces;
 use crate::system::AssembledSystem;
 use crate::two_level::TwoLevel;
@@ -176,6 +177,7 @@ struct Workspace {
     preconditioner: Vec<Matrix3<Real>>,
     contacts: ContactSet,
     cg: CgWorkspace,
+    low_rank: LowRankUpdate,
 }
 
 /// Owns the state `{x, v, epoch}` and advances it.
@@ -690,16 +692,53 @@ impl Integrator {
                     (outcome.iterations, outcome.relative_residual)
                 }
             };
-            seconds.solve += clock.elapsed().as_secs_f64();
             iterations += solved.0;
             if passes == DRIVEN_CONTACT_PASSES {
+                seconds.solve += clock.elapsed().as_secs_f64();
                 break solved.1;
             }
-            let Some(points) = self.constraints.contact_points.as_ref() else { break solved.1 };
-            if self.work.contacts.activate_driven(points, &self.v, h) == 0 {
+            let Some(points) = self.constraints.contact_points.as_ref() else {
+                seconds.solve += clock.elapsed().as_secs_f64();
+                break solved.1;
+            };
+            let mut added = self.work.contacts.activate_driven(points, &self.v, h);
+            if added == 0 {
+                seconds.solve += clock.elapsed().as_secs_f64();
                 break solved.1;
             }
             passes += 1;
+            // With a factorization at hand, the pairs that joined are a low-rank update of it
+            // (low_rank.rs); their couplings join the pattern when the next step's contacts
+            // need them. Too many columns, or a capacitance that is not positive definite:
+            // the pattern grows and the matrix is factorized again with them.
+            if self.settings.solver == Solver::Cholesky && passes == 1 {
+                let system = self.system.as_mut().expect("Cholesky builds the system");
+                let update = &mut self.work.low_rank;
+                update.begin(&self.v);
+                let contacts = &mut self.work.contacts;
+                let updated = loop {
+                    update.push_contacts(points, &contacts.contacts[contacts.contacts.len() - added..], &self.pinned);
+                    if update.rank() > low_rank::MAX_COLUMNS
+                        || !update.solve(|rhs, count| system.solve_columns_in_place(rhs, count), &mut self.v)
+                    {
+                        break false;
+                    }
+                    iterations += 1;
+                    if passes == DRIVEN_CONTACT_PASSES {
+                        break true;
+                    }
+                    added = contacts.activate_driven(points, &self.v, h);
+                    if added == 0 {
+                        break true;
+                    }
+                    passes += 1;
+                };
+                if updated {
+                    seconds.solve += clock.elapsed().as_secs_f64();
+                    break solved.1;
+                }
+            }
+            seconds.solve += clock.elapsed().as_secs_f64();
             assembly_clock = Instant::now();
         };
 

@@ -8,6 +8,7 @@ mod constraints;
 mod contact;
 mod error;
 mod integrator;
+mod low_rank;
 mod momentum;
 mod statics;
 mod system;

@@ -238,4 +238,9 @@ impl AssembledSystem {
     pub(crate) fn solve_in_place(&mut self, rhs: &mut [Real]) {
         self.cholesky.as_mut().expect("solve needs the Cholesky storage").solve_in_place(rhs);
     }
+
+    /// Solves the `columns` columns of `rhs` (column-major) in place with the last factorization.
+    pub(crate) fn solve_columns_in_place(&mut self, rhs: &mut [Real], columns: usize) {
+        self.cholesky.as_mut().expect("solve needs the Cholesky storage").solve_columns_in_place(rhs, columns);
+    }
 }
