@@ -301,6 +301,9 @@ fn run(
     let mut last_report = None;
     let mut failure = None;
     let mut frame_walls = [(0.0f64, 0usize); 2];
+    // The slowest step (wall, step) and how many took longer than a tenth of a second.
+    let mut slowest = (0.0f64, 0u64);
+    let mut over_a_tenth = 0usize;
     let mut contact_totals = ContactTotals::default();
     while simulation.steps_done() < total {
         if interrupted.load(Ordering::SeqCst) {
@@ -315,6 +318,10 @@ fn run(
         let bucket = usize::from(simulation.cut_summary().changes > changes_before);
         frame_walls[bucket].0 += step_wall;
         frame_walls[bucket].1 += 1;
+        if step_wall > slowest.0 {
+            slowest = (step_wall, simulation.steps_done());
+        }
+        over_a_tenth += usize::from(step_wall > 0.1);
         match result {
             Ok(report) => {
                 let s = report.seconds;
@@ -392,6 +399,21 @@ fn run(
             rate(frame_walls[0]),
             frame_walls[0].1
         );
+        println!(
+            "slowest step (recording included): {:.1} ms ({:.1} frames/s), step {}; {} steps over 100 ms",
+            1e3 * slowest.0,
+            1.0 / slowest.0.max(1e-9),
+            slowest.1,
+            over_a_tenth
+        );
+        if cuts.prepared > 0 {
+            println!(
+                "timeline cuts made ahead on a copy, off the step's thread: {} of {} changes, {:.1} ms (not in cutting [ms])",
+                cuts.prepared,
+                cuts.changes,
+                1e3 * cuts.prepared_seconds
+            );
+        }
         for (k, piece) in cuts.pieces.iter().enumerate() {
             println!(
                 "piece {k}: {} elements, volume {:.6e} m³, mass {:.6e} kg",

@@ -84,7 +84,7 @@ pub struct BlockRef<'a> {
 }
 
 /// Blocks `{nodes, rest matrix id, frame}` over a library of rest matrices.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct BlockSet {
     num_nodes: usize,
     rest_matrices: Vec<DMatrix<Real>>,

@@ -188,6 +188,14 @@ pub trait Cuttable {
     fn pieces(&self) -> Vec<Piece> {
         Vec::new()
     }
+
+    /// A copy of this body that a cut known ahead can be applied to off the step's thread and
+    /// swapped in when it is due (the scene runner prepares a timeline `Cut` this way while the
+    /// steps before it run); `None` if the backend cannot copy itself: the cut is then made
+    /// when due.
+    fn copy_for_cutting(&self) -> Option<Box<dyn Discretization>> {
+        None
+    }
 }
 
 /// Backends that fracture under tensile stress.

@@ -17,6 +17,18 @@ pub struct ScatterPlan {
     buffers: Mutex<Vec<Vec<Real>>>,
 }
 
+impl Clone for ScatterPlan {
+    fn clone(&self) -> Self {
+        let buffers = self.buffers.lock().unwrap_or_else(std::sync::PoisonError::into_inner).clone();
+        Self {
+            num_dofs: self.num_dofs,
+            chunks: self.chunks.clone(),
+            dof_ranges: self.dof_ranges.clone(),
+            buffers: Mutex::new(buffers),
+        }
+    }
+}
+
 impl ScatterPlan {
     /// Plans a scatter over `num_items` items whose touched DOFs are given by `item_dof_range`
     /// (half-open, scalar DOF indices), into vectors of length `num_dofs`.

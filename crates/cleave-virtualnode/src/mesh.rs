@@ -220,9 +220,37 @@ pub struct VirtualNodeMesh {
     pub(crate) render_cache: std::sync::Mutex<crate::surface::RenderCache>,
 }
 
+/// A copy with its own render cache (what a cut prepared off the step's thread starts from).
+impl Clone for VirtualNodeMesh {
+    fn clone(&self) -> Self {
+        let render_cache = self.render_cache.lock().unwrap_or_else(std::sync::PoisonError::into_inner).clone();
+        Self {
+            material: self.material,
+            lattice: self.lattice.clone(),
+            lattice_nodes: self.lattice_nodes.clone(),
+            tets: self.tets.clone(),
+            cube_tets: self.cube_tets.clone(),
+            rest_library: self.rest_library.clone(),
+            duplicates: self.duplicates.clone(),
+            dups_of_tet: self.dups_of_tet.clone(),
+            node_lattice: self.node_lattice.clone(),
+            rest: self.rest.clone(),
+            mass: self.mass.clone(),
+            blocks: self.blocks.clone(),
+            epoch: self.epoch,
+            last_cut: self.last_cut,
+            lumping: self.lumping,
+            links: self.links.clone(),
+            source: self.source.clone(),
+            last_change: self.last_change.clone(),
+            render_cache: std::sync::Mutex::new(render_cache),
+        }
+    }
+}
+
 /// What one topology change replaced: read by the render surface, which keeps the polygons
 /// (and their loops) of everything the change cannot have reached.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub(crate) struct ChangeRecord {
     /// The epoch before the change.
     pub epoch_before: u64,
@@ -235,7 +263,7 @@ pub(crate) struct ChangeRecord {
 /// The object surface a mesh was carved from, outward oriented, with the lattice tetrahedra
 /// (kept ones only) each triangle may meet: the render surface draws a triangle whole, without
 /// clipping it to tetrahedra, while no cut has touched any of them.
-#[derive(Debug, Default)]
+#[derive(Clone, Debug, Default)]
 pub(crate) struct SourceSurface {
     /// Non-degenerate triangles, counter-clockwise seen from outside.
     pub triangles: Vec<[Point3<Real>; 3]>,
@@ -896,6 +924,10 @@ impl Cuttable for VirtualNodeMesh {
             triangles: surface.triangles,
             embedding: surface.embedding,
         })
+    }
+
+    fn copy_for_cutting(&self) -> Option<Box<dyn Discretization>> {
+        Some(Box::new(self.clone()))
     }
 
     fn pieces(&self) -> Vec<cleave_core::Piece> {

@@ -90,7 +90,7 @@ impl EntryRef {
 /// or with a tetrahedron of a source triangle that such a tetrahedron meets, or with a
 /// tetrahedron of a piece that split: a loop depends on its own tetrahedron's cells, on the
 /// polygons of the tetrahedra sharing an edge with it and on which of them share its piece.
-#[derive(Debug, Default)]
+#[derive(Clone, Debug, Default)]
 pub(crate) struct RenderCache {
     epoch: Option<u64>,
     /// Polygons the render that made this cache took from the one before.
