@@ -188,14 +188,6 @@ pub trait Cuttable {
     fn pieces(&self) -> Vec<Piece> {
         Vec::new()
     }
-
-    /// A copy of this body that a cut known ahead can be applied to off the step's thread and
-    /// swapped in when it is due (the scene runner prepares a timeline `Cut` this way while the
-    /// steps before it run); `None` if the backend cannot copy itself: the cut is then made
-    /// when due.
-    fn copy_for_cutting(&self) -> Option<Box<dyn Discretization>> {
-        None
-    }
 }
 
 /// Backends that fracture under tensile stress.
@@ -312,6 +304,14 @@ pub trait Discretization: Send + Sync {
 
     /// Cutting, if supported.
     fn as_cuttable(&mut self) -> Option<&mut dyn Cuttable> {
+        None
+    }
+
+    /// A copy of this body that a cut known ahead can be applied to off the step's thread and
+    /// swapped in when it is due (the scene runner prepares a timeline `Cut` this way, copy
+    /// included, while the steps before it run); `None` if the backend cannot copy itself or
+    /// cannot cut: the cut is then made when due.
+    fn copy_for_cutting(&self) -> Option<Box<dyn Discretization>> {
         None
     }
 

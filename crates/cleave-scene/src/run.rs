@@ -15,6 +15,7 @@ use cleave_registry::{Backend, BackendError, Region, Shape, SolidRequest};
 use nalgebra::{Rotation3, UnitQuaternion};
 use serde_json::json;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Everything that can go wrong with a scene, each naming the file it concerns.
@@ -127,7 +128,9 @@ pub struct Simulation {
     path: PathBuf,
     steps: u64,
     surface_every: u64,
-    discretization: Box<dyn Discretization>,
+    /// Shared with a preparation thread while it copies the body (`prepare_next_cut`); changed
+    /// only between steps, when no one else holds it (`body_mut`).
+    discretization: Arc<dyn Discretization>,
     integrator: Integrator,
     surface_triangles: Vec<[u32; 3]>,
     surface_points: Embedding,
@@ -148,7 +151,7 @@ pub struct Simulation {
     /// The next timeline `Cut`, being applied to a copy of the body off the step's thread.
     prepared: Option<PreparedCut>,
     /// The body a prepared cut replaced, freed by the next preparation's thread.
-    retired: Option<Box<dyn Discretization>>,
+    retired: Option<Arc<dyn Discretization>>,
     /// See [`Simulation::set_cut_ahead`].
     cut_ahead: bool,
 }
@@ -474,7 +477,7 @@ impl Simulation {
             path,
             steps: scene.steps,
             surface_every: u64::from(scene.output.surface_every.max(1)),
-            discretization,
+            discretization: Arc::from(discretization),
             integrator,
             surface_triangles,
             surface_points,
@@ -679,22 +682,36 @@ impl Simulation {
         }
         let surface = surface.clone();
         let epoch = self.discretization.epoch();
-        let Some(copy) = self.discretization.as_cuttable().and_then(|c| c.copy_for_cutting()) else { return };
+        // The copy itself is made on the preparation's thread (40 ms on bunny_slice after its
+        // first cuts): the body is shared until then, and the steps only read it.
+        let body = Arc::clone(&self.discretization);
         // As many threads as the step's pool, so the copy is cut exactly as the body would be
         // (per-thread chunking of the scatter plans) and the result is the same bit for bit.
         let threads = rayon::current_num_threads();
         let retired = self.retired.take();
         let spawned = std::thread::Builder::new().name("cleave-cut-ahead".into()).spawn(move || {
-            drop(retired);
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .thread_name(|k| format!("cleave-cut-ahead-{k}"))
+                // What the step leaves of the cores (its sequential factorization, for one):
+                // at the step's priority they took half of them, and the steps in between
+                // slowed by as much (a step after a cut reached 119 ms). Where the priority
+                // cannot be lowered they run at the step's.
+                .start_handler(|_| {
+                    let _ = thread_priority::set_current_thread_priority(thread_priority::ThreadPriority::Min);
+                })
                 .build()
                 .map_err(|e| TopologyError::Invalid(format!("no threads to cut ahead on: {e}")))?;
             pool.install(move || {
+                drop(retired);
                 let clock = Instant::now();
-                let mut discretization = copy;
-                let cuttable = discretization.as_cuttable().expect("a copy for cutting can cut");
+                let copy = body.copy_for_cutting();
+                drop(body);
+                let mut discretization =
+                    copy.ok_or_else(|| TopologyError::Invalid("the backend cannot copy itself to cut ahead".into()))?;
+                let cuttable = discretization
+                    .as_cuttable()
+                    .ok_or_else(|| TopologyError::Invalid("the backend's copy cannot cut".into()))?;
                 let change = cuttable.cut(&surface)?;
                 let surface = cuttable.surface();
                 let pieces = cuttable.pieces();
@@ -705,6 +722,22 @@ impl Simulation {
         if let Ok(handle) = spawned {
             self.prepared = Some(PreparedCut { event, epoch, handle });
         }
+    }
+
+    /// The body, to change between steps. A preparation still holding it (copying it for a
+    /// later cut) is waited for and dropped first: its copy would be of the body before this
+    /// change.
+    fn body_mut(&mut self) -> Result<&mut (dyn Discretization + 'static), SceneError> {
+        if Arc::get_mut(&mut self.discretization).is_none()
+            && let Some(prepared) = self.prepared.take()
+        {
+            let _ = prepared.handle.join();
+        }
+        let path = self.path.clone();
+        Arc::get_mut(&mut self.discretization).ok_or_else(|| SceneError::Build {
+            path,
+            message: "the body is still shared with a cut prepared ahead".into(),
+        })
     }
 
     /// The prepared copy of timeline event `event` if it is ready to use (waiting for it if
@@ -727,7 +760,8 @@ impl Simulation {
     /// the body was what it is now), swapped in instead of cutting.
     fn apply_cut(&mut self, surface: &CutSurface, prepared: Option<CutCopy>) -> Result<(), SceneError> {
         let clock = Instant::now();
-        let build_error = |message: String| SceneError::Build { path: self.path.clone(), message };
+        let path = self.path.clone();
+        let build_error = |message: String| SceneError::Build { path: path.clone(), message };
         let before = (self.discretization.num_nodes(), self.discretization.num_frames(), self.cuts.pieces.len());
         let epoch = self.discretization.epoch();
         let (change, surface, pieces, ahead) = match prepared {
@@ -738,17 +772,16 @@ impl Simulation {
                 // Freeing the old body's many small allocations took 13-21 ms on bunny_slice,
                 // and as much on another thread at the same time (the allocator's locks): the
                 // next preparation frees it, off the step's thread and between cuts.
-                self.retired = Some(std::mem::replace(&mut self.discretization, copy.discretization));
+                self.retired = Some(std::mem::replace(&mut self.discretization, Arc::from(copy.discretization)));
                 (copy.change, copy.surface, copy.pieces, Some(copy.seconds))
             }
             None => {
+                let (backend, time) = (self.info.backend.clone(), self.integrator.time());
                 let cuttable = self
-                    .discretization
+                    .body_mut()?
                     .as_cuttable()
-                    .ok_or_else(|| build_error(format!("the {} backend cannot cut", self.info.backend)))?;
-                let change = cuttable
-                    .cut(surface)
-                    .map_err(|e| build_error(format!("cut at t = {} s: {e}", self.integrator.time())))?;
+                    .ok_or_else(|| build_error(format!("the {backend} backend cannot cut")))?;
+                let change = cuttable.cut(surface).map_err(|e| build_error(format!("cut at t = {time} s: {e}")))?;
                 if change.epoch == epoch {
                     return Ok(());
                 }

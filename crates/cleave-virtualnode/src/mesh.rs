@@ -899,6 +899,10 @@ impl Discretization for VirtualNodeMesh {
     fn as_cuttable(&mut self) -> Option<&mut dyn Cuttable> {
         Some(self)
     }
+
+    fn copy_for_cutting(&self) -> Option<Box<dyn Discretization>> {
+        Some(Box::new(self.clone()))
+    }
 }
 
 impl Cuttable for VirtualNodeMesh {
@@ -924,10 +928,6 @@ impl Cuttable for VirtualNodeMesh {
             triangles: surface.triangles,
             embedding: surface.embedding,
         })
-    }
-
-    fn copy_for_cutting(&self) -> Option<Box<dyn Discretization>> {
-        Some(Box::new(self.clone()))
     }
 
     fn pieces(&self) -> Vec<cleave_core::Piece> {
