@@ -173,7 +173,9 @@ pub fn section(rows: &[CutRow], order: &[String], cannot_cut: &[String], errors:
          the scene's settings for that backend and no recording (`xtask/src/cutting.rs`). *ms per change* \
          is the mean wall clock of a topology change: the backend's cut, the integrator's rebuild, pins, \
          contact rows and surface (with surface contact the pattern and symbolic factorization are built \
-         by the next step, with its contacts, and count in that step's time). Drifts are relative to the start. Steps per second are measured in the steps that \
+         by the next step, with its contacts, and count in that step's time); each cut is made when it is due \
+         (`cargo xtask run` makes a timeline `Cut` ahead on a copy of the body while the steps before it run: \
+         not measured here). Drifts are relative to the start. Steps per second are measured in the steps that \
          cut and in the others separately. Raw rows: [`cutting.csv`](cutting.csv), one per backend, kept \
          for backends a later invocation does not rerun.\n"
     );
