@@ -16,7 +16,7 @@ use crate::low_rank::{self, LowRankUpdate};
 use crate::momentum::FreePieces;
 use crate::system::AssembledSystem;
 use crate::two_level::TwoLevel;
-use cleave_core::{Discretization, Matrix3, Point3, Real, TopologyChange, Vector3};
+use cleave_core::{Discretization, Embedding, Matrix3, Point3, Real, TopologyChange, Vector3};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -180,6 +180,46 @@ struct Workspace {
     low_rank: LowRankUpdate,
 }
 
+/// The contact structures of a topology (each surface point's ring, the surface's pieces and
+/// edges), which depend on the contact points, the surface and the rest positions only: built
+/// off the step's thread by a caller that knows the next topology ahead, then handed to
+/// [`Integrator::apply_topology_change_prepared`].
+pub struct PreparedContact {
+    set: ContactSet,
+    /// What it was built from: the number of contact points and surface triangles and a hash
+    /// of the rest positions' bits.
+    built_from: (usize, usize, u64),
+}
+
+impl PreparedContact {
+    /// Builds them for `constraints` (its contact points and surface contact) at rest
+    /// positions `rest_dofs`.
+    pub fn new(constraints: &Constraints, rest_dofs: &[Real]) -> Self {
+        Self { set: ContactSet::new(constraints, rest_dofs), built_from: Self::key(constraints, rest_dofs) }
+    }
+
+    fn key(constraints: &Constraints, rest_dofs: &[Real]) -> (usize, usize, u64) {
+        use std::hash::{Hash, Hasher};
+        let mut hasher = std::collections::hash_map::DefaultHasher::new();
+        rest_dofs.iter().for_each(|x| x.to_bits().hash(&mut hasher));
+        (
+            constraints.contact_points.as_ref().map_or(0, Embedding::len),
+            constraints.surface_contact.as_ref().map_or(0, |s| s.triangles.len()),
+            hasher.finish(),
+        )
+    }
+
+    fn matches(&self, constraints: &Constraints, rest_dofs: &[Real]) -> bool {
+        self.built_from == Self::key(constraints, rest_dofs)
+    }
+}
+
+impl std::fmt::Debug for PreparedContact {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PreparedContact").field("built_from", &self.built_from).finish()
+    }
+}
+
 /// Owns the state `{x, v, epoch}` and advances it.
 pub struct Integrator {
     settings: Settings,
@@ -241,14 +281,19 @@ impl Integrator {
             contacts_stale: false,
             free_pieces: FreePieces::default(),
         };
-        integrator.rebuild(discretization, false).map_err(|kind| StepError { step: 0, kind })?;
+        integrator.rebuild(discretization, false, None).map_err(|kind| StepError { step: 0, kind })?;
         Ok(integrator)
     }
 
     /// Rebuilds everything that depends on the topology: loads, pins, pattern, factorization
     /// (or, with `defer_assembly`, leaves the assembled system to the next step, which builds it
     /// with that step's contact couplings in it).
-    fn rebuild(&mut self, discretization: &dyn Discretization, defer_assembly: bool) -> Result<(), StepErrorKind> {
+    fn rebuild(
+        &mut self,
+        discretization: &dyn Discretization,
+        defer_assembly: bool,
+        prepared: Option<PreparedContact>,
+    ) -> Result<(), StepErrorKind> {
         let n = self.x.len();
         // Warm starts survive a topology change when the caller remapped them frame by frame.
         if self.rotations.len() != discretization.num_frames() {
@@ -315,7 +360,10 @@ impl Integrator {
         self.work.scratch = vec![0.0; n];
         self.work.preconditioner = vec![Matrix3::zeros(); discretization.num_nodes()];
         let previous = std::mem::take(&mut self.work.contacts);
-        self.work.contacts = ContactSet::new(&self.constraints, discretization.rest_dofs());
+        self.work.contacts = match prepared.filter(|p| p.matches(&self.constraints, discretization.rest_dofs())) {
+            Some(prepared) => prepared.set,
+            None => ContactSet::new(&self.constraints, discretization.rest_dofs()),
+        };
         self.work.contacts.reuse_trees(previous);
         // The penetrating pairs of the new state are found only if its energy is asked for
         // before the next step finds its own (a detection builds every hierarchy from scratch:
@@ -372,6 +420,21 @@ impl Integrator {
         change: &TopologyChange,
         constraints: Constraints,
     ) -> Result<(), StepError> {
+        self.apply_topology_change_prepared(discretization, change, constraints, None)
+    }
+
+    /// [`apply_topology_change`](Self::apply_topology_change) with the contact structures of
+    /// the new topology built beforehand ([`PreparedContact`], e.g. off the step's thread by a
+    /// caller that knew the change ahead). They are used if they were built from the same
+    /// contact points, surface and rest positions as `constraints` and `discretization` hold
+    /// (checked by their sizes and a hash of the rest positions), else built again here.
+    pub fn apply_topology_change_prepared(
+        &mut self,
+        discretization: &dyn Discretization,
+        change: &TopologyChange,
+        constraints: Constraints,
+        prepared: Option<PreparedContact>,
+    ) -> Result<(), StepError> {
         let fail = |kind| StepError { step: self.step, kind };
         let old_nodes = self.x.len() / 3;
         let new_nodes = change.remap.new_num_nodes(old_nodes);
@@ -394,7 +457,7 @@ impl Integrator {
         // With surface contact the first step's contacts grow the pattern anyway: its system is
         // built then, with them, and one symbolic factorization per cut is saved.
         let defer = self.constraints.surface_contact.is_some();
-        self.rebuild(discretization, defer).map_err(|kind| StepError { step: self.step, kind })
+        self.rebuild(discretization, defer, prepared).map_err(|kind| StepError { step: self.step, kind })
     }
 
     /// Current positions (DOF vector).

@@ -17,5 +17,7 @@ mod two_level;
 pub use constraints::{Constraints, MeshCollider, MeshColliderError, PenaltyPins, PlaneCollider, SurfaceContact};
 pub use contact::{ContactKind, ContactStats, FRICTION_SLIP_SPEED};
 pub use error::{StepError, StepErrorKind};
-pub use integrator::{AUTO_COARSE_DOFS, Integrator, PhaseSeconds, Preconditioner, Settings, Solver, StepReport};
+pub use integrator::{
+    AUTO_COARSE_DOFS, Integrator, PhaseSeconds, Preconditioner, PreparedContact, Settings, Solver, StepReport,
+};
 pub use statics::{StaticSolution, solve_static};

@@ -9,7 +9,8 @@ use cleave_core::{
 };
 use cleave_geometry::{Blade, Keyframe, TriangleMesh};
 use cleave_integrator::{
-    Constraints, Integrator, MeshCollider, PlaneCollider, Settings, Solver, StepError, StepReport, SurfaceContact,
+    Constraints, Integrator, MeshCollider, PlaneCollider, PreparedContact, Settings, Solver, StepError, StepReport,
+    SurfaceContact,
 };
 use cleave_registry::{Backend, BackendError, Region, Shape, SolidRequest};
 use nalgebra::{Rotation3, UnitQuaternion};
@@ -173,6 +174,8 @@ struct CutCopy {
     change: TopologyChange,
     surface: Option<EmbeddedSurface>,
     pieces: Vec<Piece>,
+    /// The integrator's contact structures of the new surface (with surface contact).
+    contact: Option<PreparedContact>,
     /// Wall time the copy took to cut and to make its surface and pieces [s].
     seconds: Real,
 }
@@ -685,6 +688,7 @@ impl Simulation {
         // The copy itself is made on the preparation's thread (40 ms on bunny_slice after its
         // first cuts): the body is shared until then, and the steps only read it.
         let body = Arc::clone(&self.discretization);
+        let surface_contact = self.contact.surface_contact.clone();
         // As many threads as the step's pool, so the copy is cut exactly as the body would be
         // (per-thread chunking of the scatter plans) and the result is the same bit for bit.
         let threads = rayon::current_num_threads();
@@ -715,7 +719,20 @@ impl Simulation {
                 let change = cuttable.cut(&surface)?;
                 let surface = cuttable.surface();
                 let pieces = cuttable.pieces();
-                Ok(CutCopy { discretization, change, surface, pieces, seconds: clock.elapsed().as_secs_f64() })
+                // The contact structures the integrator builds from the new surface alone.
+                let contact = surface_contact.zip(surface.as_ref()).map(|(settings, surface)| {
+                    let constraints = Constraints {
+                        contact_points: Some(surface.embedding.clone()),
+                        surface_contact: Some(SurfaceContact {
+                            triangles: surface.triangles.clone(),
+                            on_cut: surface.on_cut.clone(),
+                            ..settings
+                        }),
+                        ..Default::default()
+                    };
+                    PreparedContact::new(&constraints, discretization.rest_dofs())
+                });
+                Ok(CutCopy { discretization, change, surface, pieces, contact, seconds: clock.elapsed().as_secs_f64() })
             })
         });
         // No thread: the cut is made when due.
@@ -764,6 +781,7 @@ impl Simulation {
         let build_error = |message: String| SceneError::Build { path: path.clone(), message };
         let before = (self.discretization.num_nodes(), self.discretization.num_frames(), self.cuts.pieces.len());
         let epoch = self.discretization.epoch();
+        let mut prepared_contact = None;
         let (change, surface, pieces, ahead) = match prepared {
             Some(copy) => {
                 if copy.change.epoch == epoch {
@@ -773,6 +791,7 @@ impl Simulation {
                 // and as much on another thread at the same time (the allocator's locks): the
                 // next preparation frees it, off the step's thread and between cuts.
                 self.retired = Some(std::mem::replace(&mut self.discretization, Arc::from(copy.discretization)));
+                prepared_contact = copy.contact;
                 (copy.change, copy.surface, copy.pieces, Some(copy.seconds))
             }
             None => {
@@ -808,7 +827,7 @@ impl Simulation {
             ..constraints
         };
         self.integrator
-            .apply_topology_change(d, &change, constraints)
+            .apply_topology_change_prepared(d, &change, constraints, prepared_contact)
             .map_err(|source| SceneError::Step { path: self.path.clone(), source })?;
         self.probes = d.embed(&self.probe_points).map_err(|e| build_error(format!("probe after a cut: {e}")))?;
         self.surface_triangles = surface.triangles;
