@@ -18,8 +18,10 @@ pub struct ScatterPlan {
 }
 
 impl Clone for ScatterPlan {
+    /// Fresh buffers of the same ranges, without taking the lock of this plan's (a scatter may
+    /// hold it; every scatter zeroes its buffers before use).
     fn clone(&self) -> Self {
-        let buffers = self.buffers.lock().unwrap_or_else(std::sync::PoisonError::into_inner).clone();
+        let buffers = self.dof_ranges.iter().map(|r| vec![0.0; r.len()]).collect();
         Self {
             num_dofs: self.num_dofs,
             chunks: self.chunks.clone(),

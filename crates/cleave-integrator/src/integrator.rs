@@ -187,7 +187,7 @@ struct Workspace {
 pub struct PreparedContact {
     set: ContactSet,
     /// What it was built from: the number of contact points and surface triangles and a hash
-    /// of the rest positions' bits.
+    /// of everything it reads (rest positions, contact points' rows, triangles, cut flags).
     built_from: (usize, usize, u64),
 }
 
@@ -202,6 +202,17 @@ impl PreparedContact {
         use std::hash::{Hash, Hasher};
         let mut hasher = std::collections::hash_map::DefaultHasher::new();
         rest_dofs.iter().for_each(|x| x.to_bits().hash(&mut hasher));
+        if let Some(points) = &constraints.contact_points {
+            for i in 0..points.len() {
+                let (nodes, weights) = points.row(i);
+                nodes.hash(&mut hasher);
+                weights.iter().for_each(|w| w.to_bits().hash(&mut hasher));
+            }
+        }
+        if let Some(surface) = &constraints.surface_contact {
+            surface.triangles.hash(&mut hasher);
+            surface.on_cut.hash(&mut hasher);
+        }
         (
             constraints.contact_points.as_ref().map_or(0, Embedding::len),
             constraints.surface_contact.as_ref().map_or(0, |s| s.triangles.len()),
@@ -292,6 +303,7 @@ impl Integrator {
         &mut self,
         discretization: &dyn Discretization,
         defer_assembly: bool,
+        // Contact structures built beforehand for these constraints (checked by the caller).
         prepared: Option<PreparedContact>,
     ) -> Result<(), StepErrorKind> {
         let n = self.x.len();
@@ -360,7 +372,7 @@ impl Integrator {
         self.work.scratch = vec![0.0; n];
         self.work.preconditioner = vec![Matrix3::zeros(); discretization.num_nodes()];
         let previous = std::mem::take(&mut self.work.contacts);
-        self.work.contacts = match prepared.filter(|p| p.matches(&self.constraints, discretization.rest_dofs())) {
+        self.work.contacts = match prepared {
             Some(prepared) => prepared.set,
             None => ContactSet::new(&self.constraints, discretization.rest_dofs()),
         };
@@ -420,21 +432,22 @@ impl Integrator {
         change: &TopologyChange,
         constraints: Constraints,
     ) -> Result<(), StepError> {
-        self.apply_topology_change_prepared(discretization, change, constraints, None)
+        self.apply_topology_change_prepared(discretization, change, constraints, None).map(|_| ())
     }
 
     /// [`apply_topology_change`](Self::apply_topology_change) with the contact structures of
     /// the new topology built beforehand ([`PreparedContact`], e.g. off the step's thread by a
     /// caller that knew the change ahead). They are used if they were built from the same
     /// contact points, surface and rest positions as `constraints` and `discretization` hold
-    /// (checked by their sizes and a hash of the rest positions), else built again here.
+    /// (checked by their sizes and a hash of all they were built from), else built again here.
+    /// Returns whether they were used.
     pub fn apply_topology_change_prepared(
         &mut self,
         discretization: &dyn Discretization,
         change: &TopologyChange,
         constraints: Constraints,
         prepared: Option<PreparedContact>,
-    ) -> Result<(), StepError> {
+    ) -> Result<bool, StepError> {
         let fail = |kind| StepError { step: self.step, kind };
         let old_nodes = self.x.len() / 3;
         let new_nodes = change.remap.new_num_nodes(old_nodes);
@@ -457,7 +470,9 @@ impl Integrator {
         // With surface contact the first step's contacts grow the pattern anyway: its system is
         // built then, with them, and one symbolic factorization per cut is saved.
         let defer = self.constraints.surface_contact.is_some();
-        self.rebuild(discretization, defer, prepared).map_err(|kind| StepError { step: self.step, kind })
+        let prepared = prepared.filter(|p| p.matches(&self.constraints, discretization.rest_dofs()));
+        let used = prepared.is_some();
+        self.rebuild(discretization, defer, prepared).map(|()| used).map_err(|kind| StepError { step: self.step, kind })
     }
 
     /// Current positions (DOF vector).

@@ -60,6 +60,14 @@ impl LowRankUpdate {
     /// and columns are the identity's, whatever the contacts add).
     pub(crate) fn push_contacts(&mut self, points: &Embedding, contacts: &[Contact], pinned: &[bool]) {
         for c in contacts {
+            if !c.matrix.iter().all(|m| m.is_finite()) {
+                // A column that `solve` refuses, without running the eigensolver on values it
+                // may not finish on (a diverged state: the step then takes the path without the
+                // update, which reports the divergence).
+                self.entries.push((0, Real::NAN));
+                self.offsets.push(self.entries.len());
+                continue;
+            }
             let eigen = c.matrix.symmetric_eigen();
             let largest = eigen.eigenvalues.max();
             for (k, &lambda) in eigen.eigenvalues.iter().enumerate() {
@@ -82,9 +90,12 @@ impl LowRankUpdate {
 
     /// Solves the columns not solved yet with the factorization (`solve_columns(rhs, count)`
     /// solves `count` column-major columns in place), then writes
-    /// `(A + V Vᵀ)⁻¹ b` to `v`. `false` (and `v` untouched) if the capacitance matrix
+    /// `(A + V Vᵀ)⁻¹ b` to `v`. `false` (and `v` untouched) if a column is not finite or the capacitance matrix
     /// `I + Vᵀ Z` is not numerically positive definite.
     pub(crate) fn solve(&mut self, solve_columns: impl FnOnce(&mut [Real], usize), v: &mut [Real]) -> bool {
+        if !self.entries.iter().all(|(_, value)| value.is_finite()) {
+            return false;
+        }
         let dim = self.base.len();
         let rank = self.rank();
         let done = self.solved.len() / dim;

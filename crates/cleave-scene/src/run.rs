@@ -609,8 +609,9 @@ impl Simulation {
     /// a change's cost is all paid in the step it is due (what `compare` measures per change).
     pub fn set_cut_ahead(&mut self, on: bool) {
         self.cut_ahead = on;
-        if !on {
-            self.prepared = None;
+        if !on && let Some(prepared) = self.prepared.take() {
+            // Joined, not left running: it may still hold the body an in-place cut will change.
+            let _ = prepared.handle.join();
         }
     }
 
@@ -658,8 +659,10 @@ impl Simulation {
     }
 
     /// Starts applying the next timeline `Cut` to a copy of the body on threads of its own, if
-    /// nothing can change the body before it (no blade acts before its time), it is not due at
-    /// the next step already, and the backend can copy itself.
+    /// nothing can change the body before it (no blade acts before its time) and it is not due
+    /// at the next step already. A backend that cannot copy itself
+    /// (`Discretization::copy_for_cutting` gives `None`) ends the preparation at once, and the
+    /// cut is made when due.
     fn prepare_next_cut(&mut self) {
         if self.prepared.is_some() || !self.cut_ahead {
             return;
@@ -804,7 +807,11 @@ impl Simulation {
                 if change.epoch == epoch {
                     return Ok(());
                 }
-                (change, cuttable.surface(), cuttable.pieces(), None)
+                let made = (change, cuttable.surface(), cuttable.pieces(), None);
+                // A preparation copied the body before this change: its copy can no longer be
+                // used, and dropping it lets the next one start.
+                self.prepared = None;
+                made
             }
         };
         let surface = surface.ok_or_else(|| build_error("a cut body must render its own surface".into()))?;
@@ -943,6 +950,9 @@ fn prepare_timeline(events: &[EventSpec], scene: &Path) -> Result<Vec<TimedCut>,
     for (index, event) in events.iter().enumerate() {
         timeline.push(match event {
             EventSpec::Cut { time, surface } => {
+                if !time.is_finite() {
+                    return Err(build_error(format!("timeline[{index}]: Cut time must be finite, got {time}")));
+                }
                 let surface = match surface {
                     CutSpec::Plane { point, normal } => {
                         CutSurface::Plane { point: Point3::from(*point), normal: Vector3::from(normal.0) }

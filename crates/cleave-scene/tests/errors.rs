@@ -149,3 +149,18 @@ fn unknown_backends_and_missing_settings_name_what_exists() {
     let message = Simulation::build_with_backend(&loaded, None, Some("dg")).err().expect("must fail").to_string();
     assert!(message.contains("no entry for backend \"dg\"") && message.contains("voxel"), "{message}");
 }
+
+#[test]
+fn a_cut_at_a_time_that_is_not_finite_is_a_clear_build_error() {
+    for time in ["NaN", "inf"] {
+        let text = GOOD.replace("backend: \"voxel\"", "backend: \"virtualnode\"").replace(
+            "settings: { \"voxel\": (cell_size: 0.25) },",
+            &format!(
+                "settings: {{ \"virtualnode\": (cell_size: 0.25) }},\n    timeline: [Cut(time: {time}, surface: Plane(point: (0.5, 0.0, 0.0), normal: (1.0, 0.0, 0.0)))],"
+            ),
+        );
+        let loaded = parse_scene(Path::new("test.ron"), &text).unwrap();
+        let message = Simulation::build(&loaded, None).err().expect("must fail").to_string();
+        assert!(message.contains("timeline[0]") && message.contains("must be finite"), "{time}: {message}");
+    }
+}

@@ -524,7 +524,9 @@ fn contact_structures_built_ahead_are_used_only_for_their_own_surface() {
             true => PreparedContact::new(&constraints, mesh.rest_dofs()),
             false => PreparedContact::new(&before_cut, &rest_before),
         });
-        integrator.apply_topology_change_prepared(&mesh, &change, constraints, prepared).unwrap();
+        let expected = prepare == Some(true);
+        let used = integrator.apply_topology_change_prepared(&mesh, &change, constraints, prepared).unwrap();
+        assert_eq!(used, expected, "prepared {prepare:?}: used {used}");
         for _ in 0..20 {
             integrator.step(&mesh).unwrap();
         }
