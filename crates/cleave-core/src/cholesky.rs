@@ -469,17 +469,9 @@ mod tests {
 
     #[test]
     fn a_multi_column_solve_solves_every_column() {
-        // The grid's symmetric values (no nudge), so `mul_vec` is the matrix solved; 7³ nodes,
-        // so that faer takes a supernodal factor (as on the bodies the integrator solves).
-        let n = 7u32;
-        let node = |x: u32, y: u32, z: u32| x + n * (y + n * z);
-        let cubes: Vec<[u32; 8]> = (0..n - 1)
-            .flat_map(|z| (0..n - 1).flat_map(move |y| (0..n - 1).map(move |x| (x, y, z))))
-            .map(|(x, y, z)| {
-                [0, 1, 2, 3, 4, 5, 6, 7].map(|c| node(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)))
-            })
-            .collect();
-        let (pattern, values) = group_laplacian_system((n * n * n) as usize, &cubes, 0.5);
+        // The grid's symmetric values (no nudge), so `mul_vec` is the matrix solved; large
+        // enough that faer takes a supernodal factor (as on the bodies the integrator solves).
+        let (pattern, values) = symmetric_grid_system();
         let mut cholesky = SparseCholesky::new(&pattern).unwrap();
         assert!(cholesky.permuted.is_some(), "a supernodal factor");
         cholesky.factorize(&values).unwrap();
@@ -497,10 +489,8 @@ mod tests {
     }
 
     /// A 7×7×7 grid of nodes coupled by its 6³ cubes (8 nodes each), values `Laplacian ⊗ B`
-    /// plus a shift, with every entry above the diagonal then nudged: large enough that faer
-    /// chooses a supernodal factor, and no longer symmetric bit for bit, so reading the wrong
-    /// triangle would show.
-    fn grid_system() -> (AssemblyPattern, Vec<Real>) {
+    /// plus a shift: large enough that faer chooses a supernodal factor.
+    fn symmetric_grid_system() -> (AssemblyPattern, Vec<Real>) {
         let n = 7u32;
         let node = |x: u32, y: u32, z: u32| x + n * (y + n * z);
         let cubes: Vec<[u32; 8]> = (0..n - 1)
@@ -509,7 +499,13 @@ mod tests {
                 [0, 1, 2, 3, 4, 5, 6, 7].map(|c| node(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)))
             })
             .collect();
-        let (pattern, mut values) = group_laplacian_system((n * n * n) as usize, &cubes, 0.5);
+        group_laplacian_system((n * n * n) as usize, &cubes, 0.5)
+    }
+
+    /// [`symmetric_grid_system`] with every entry above the diagonal then nudged: no longer
+    /// symmetric bit for bit, so reading the wrong triangle would show.
+    fn grid_system() -> (AssemblyPattern, Vec<Real>) {
+        let (pattern, mut values) = symmetric_grid_system();
         for col in 0..pattern.dim() {
             for k in pattern.col_ptr()[col]..pattern.col_ptr()[col + 1] {
                 if pattern.row_idx()[k] < col {

@@ -17,16 +17,20 @@ pub struct ScatterPlan {
     buffers: Mutex<Vec<Vec<Real>>>,
 }
 
+/// One zeroed buffer per DOF range.
+fn zeroed_buffers(dof_ranges: &[Range<usize>]) -> Vec<Vec<Real>> {
+    dof_ranges.iter().map(|r| vec![0.0; r.len()]).collect()
+}
+
 impl Clone for ScatterPlan {
     /// Fresh buffers of the same ranges, without taking the lock of this plan's (a scatter may
     /// hold it; every scatter zeroes its buffers before use).
     fn clone(&self) -> Self {
-        let buffers = self.dof_ranges.iter().map(|r| vec![0.0; r.len()]).collect();
         Self {
             num_dofs: self.num_dofs,
             chunks: self.chunks.clone(),
             dof_ranges: self.dof_ranges.clone(),
-            buffers: Mutex::new(buffers),
+            buffers: Mutex::new(zeroed_buffers(&self.dof_ranges)),
         }
     }
 }
@@ -59,8 +63,8 @@ impl ScatterPlan {
             dof_ranges.push(lo..hi);
             start = end;
         }
-        let buffers = dof_ranges.iter().map(|r| vec![0.0; r.len()]).collect();
-        Self { num_dofs, chunks, dof_ranges, buffers: Mutex::new(buffers) }
+        let buffers = Mutex::new(zeroed_buffers(&dof_ranges));
+        Self { num_dofs, chunks, dof_ranges, buffers }
     }
 
     /// Length of the DOF vectors this plan scatters into.

@@ -771,52 +771,51 @@ impl Integrator {
                 }
             };
             iterations += solved.0;
-            if passes == DRIVEN_CONTACT_PASSES {
-                seconds.solve += clock.elapsed().as_secs_f64();
-                break solved.1;
-            }
-            let Some(points) = self.constraints.contact_points.as_ref() else {
-                seconds.solve += clock.elapsed().as_secs_f64();
-                break solved.1;
-            };
-            let mut added = self.work.contacts.activate_driven(points, &self.v, h);
-            if added == 0 {
-                seconds.solve += clock.elapsed().as_secs_f64();
-                break solved.1;
-            }
-            passes += 1;
-            // With a factorization at hand, the pairs that joined are a low-rank update of it
-            // (low_rank.rs); their couplings join the pattern when the next step's contacts
-            // need them. Too many columns, or a capacitance that is not positive definite:
-            // the pattern grows and the matrix is factorized again with them.
-            if self.settings.solver == Solver::Cholesky && passes == 1 {
+            // Pairs the solution drives together join the step (one or two more passes); the
+            // search for them counts as solve time.
+            let finished = 'again: {
+                if passes == DRIVEN_CONTACT_PASSES {
+                    break 'again true;
+                }
+                let Some(points) = self.constraints.contact_points.as_ref() else { break 'again true };
+                let mut added = self.work.contacts.activate_driven(points, &self.v, h);
+                if added == 0 {
+                    break 'again true;
+                }
+                passes += 1;
+                // With a factorization at hand, the pairs that joined are a low-rank update of
+                // it (low_rank.rs); their couplings join the pattern when the next step's
+                // contacts need them. Too many columns, or a capacitance that is not positive
+                // definite: the pattern grows and the matrix is factorized again with them.
+                if self.settings.solver != Solver::Cholesky || passes != 1 {
+                    break 'again false;
+                }
                 let system = self.system.as_mut().expect("Cholesky builds the system");
                 let update = &mut self.work.low_rank;
                 update.begin(&self.v);
                 let contacts = &mut self.work.contacts;
-                let updated = loop {
+                loop {
                     update.push_contacts(points, &contacts.contacts[contacts.contacts.len() - added..], &self.pinned);
                     if update.rank() > low_rank::MAX_COLUMNS
                         || !update.solve(|rhs, count| system.solve_columns_in_place(rhs, count), &mut self.v)
                     {
-                        break false;
+                        break 'again false;
                     }
                     iterations += 1;
                     if passes == DRIVEN_CONTACT_PASSES {
-                        break true;
+                        break 'again true;
                     }
                     added = contacts.activate_driven(points, &self.v, h);
                     if added == 0 {
-                        break true;
+                        break 'again true;
                     }
                     passes += 1;
-                };
-                if updated {
-                    seconds.solve += clock.elapsed().as_secs_f64();
-                    break solved.1;
                 }
-            }
+            };
             seconds.solve += clock.elapsed().as_secs_f64();
+            if finished {
+                break solved.1;
+            }
             assembly_clock = Instant::now();
         };
 

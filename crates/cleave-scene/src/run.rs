@@ -151,7 +151,8 @@ pub struct Simulation {
     cuts: CutSummary,
     /// The next timeline `Cut`, being applied to a copy of the body off the step's thread.
     prepared: Option<PreparedCut>,
-    /// The body a prepared cut replaced, freed by the next preparation's thread.
+    /// The body a prepared cut replaced, freed by the next preparation's thread (or with the
+    /// simulation, after the last one).
     retired: Option<Arc<dyn Discretization>>,
     /// See [`Simulation::set_cut_ahead`].
     cut_ahead: bool,
@@ -176,7 +177,8 @@ struct CutCopy {
     pieces: Vec<Piece>,
     /// The integrator's contact structures of the new surface (with surface contact).
     contact: Option<PreparedContact>,
-    /// Wall time the copy took to cut and to make its surface and pieces [s].
+    /// Wall time the preparation took to copy and cut the body and make its surface, pieces and
+    /// contact structures [s].
     seconds: Real,
 }
 
@@ -726,11 +728,7 @@ impl Simulation {
                 let contact = surface_contact.zip(surface.as_ref()).map(|(settings, surface)| {
                     let constraints = Constraints {
                         contact_points: Some(surface.embedding.clone()),
-                        surface_contact: Some(SurfaceContact {
-                            triangles: surface.triangles.clone(),
-                            on_cut: surface.on_cut.clone(),
-                            ..settings
-                        }),
+                        surface_contact: Some(surface_contact_on(&settings, surface)),
                         ..Default::default()
                     };
                     PreparedContact::new(&constraints, discretization.rest_dofs())
@@ -822,11 +820,7 @@ impl Simulation {
             extra_load: pins.extra_load,
             planes: self.contact.planes.clone(),
             meshes: self.contact.meshes.clone(),
-            surface_contact: self.contact.surface_contact.clone().map(|c| SurfaceContact {
-                triangles: surface.triangles.clone(),
-                on_cut: surface.on_cut.clone(),
-                ..c
-            }),
+            surface_contact: self.contact.surface_contact.as_ref().map(|c| surface_contact_on(c, &surface)),
             ..Default::default()
         };
         let constraints = Constraints {
@@ -942,6 +936,20 @@ pub const DEFAULT_REACH: Real = 0.1;
 /// Penalty stiffness of surface contact when a scene has neither a `contact` entry nor a
 /// collider to take it from [N/m].
 pub const DEFAULT_CONTACT_STIFFNESS: Real = 1e4;
+
+/// The scene's surface contact `settings` on the triangles of `surface` (a cut body's new one).
+fn surface_contact_on(settings: &SurfaceContact, surface: &EmbeddedSurface) -> SurfaceContact {
+    SurfaceContact {
+        triangles: surface.triangles.clone(),
+        on_cut: surface.on_cut.clone(),
+        stiffness: settings.stiffness,
+        damping: settings.damping,
+        friction: settings.friction,
+        thickness: settings.thickness,
+        reach: settings.reach,
+        edge_contact: settings.edge_contact,
+    }
+}
 
 /// Turns the scene's events into cuts ready to act: OBJ soups read and placed, blades checked.
 fn prepare_timeline(events: &[EventSpec], scene: &Path) -> Result<Vec<TimedCut>, SceneError> {
