@@ -166,6 +166,10 @@ pub(crate) struct ContactSet {
     component_velocity: Vec<Vector3<Real>>,
     /// This step's largest speed of a point of each component relative to its mean velocity.
     component_spread: Vec<Real>,
+    /// This step's largest difference of two corners' velocities in a triangle, per triangle
+    /// and per component.
+    triangle_spread: Vec<Real>,
+    component_triangle_spread: Vec<Real>,
     /// Per surface component: its triangles, and those on a cut (indices into the surface's
     /// triangles), with a bounding volume hierarchy over each list (built at the first step of
     /// an epoch, refit every step).
@@ -707,13 +711,21 @@ impl ContactSet {
         // Each triangle's area normal once (the vertex normals sum them), then its unit normal.
         self.triangle_area_normals.resize(triangles.len(), Vector3::zeros());
         self.triangle_normals.resize(triangles.len(), Vector3::zeros());
-        self.triangle_area_normals.par_iter_mut().zip(self.triangle_normals.par_iter_mut()).zip(triangles).for_each(
-            |((area_normal, normal), triangle)| {
+        // And the largest difference of its corners' velocities, which bounds how much faster any
+        // corner moves than any point of the triangle.
+        self.triangle_spread.resize(triangles.len(), 0.0);
+        self.triangle_area_normals
+            .par_iter_mut()
+            .zip(self.triangle_normals.par_iter_mut())
+            .zip(self.triangle_spread.par_iter_mut())
+            .zip(triangles)
+            .for_each(|(((area_normal, normal), spread), triangle)| {
                 let [a, b, c] = triangle.map(|i| positions[i as usize]);
                 *area_normal = (b - a).cross(&(c - a));
                 *normal = area_normal.try_normalize(0.0).unwrap_or_else(Vector3::zeros);
-            },
-        );
+                let [va, vb, vc] = triangle.map(|i| velocities[i as usize]);
+                *spread = (va - vb).norm().max((vb - vc).norm()).max((vc - va).norm());
+            });
         let (offsets, around, area_normals) =
             (&self.vertex_triangle_offsets, &self.vertex_triangles, &self.triangle_area_normals);
         self.vertex_normals.par_iter_mut().enumerate().for_each(|(i, normal)| {
@@ -738,12 +750,21 @@ impl ContactSet {
             let spread = &mut self.component_spread[c as usize];
             *spread = spread.max((velocities[i] - self.component_velocity[c as usize]).norm());
         }
+        self.component_triangle_spread.clear();
+        self.component_triangle_spread.resize(self.component_points.len(), 0.0);
+        for (triangle, &spread) in triangles.iter().zip(&self.triangle_spread) {
+            let c = self.component[triangle[0] as usize] as usize;
+            self.component_triangle_spread[c] = self.component_triangle_spread[c].max(spread);
+        }
         let (component, component_velocity) = (&self.component, &self.component_velocity);
         // A leaf box of a piece's whole surface is the triangle's own (the nearest-triangle
         // search below bounds its radius by the motion); a leaf box of its cut faces holds the
-        // reach and the triangle's motion relative to the piece (the own-cut query is a box).
+        // reach, the triangle's motion relative to the piece and the spread of its corners'
+        // velocities (the own-cut query is a box).
         let num_whole = self.component_triangles.len();
-        let leaf = |t: &[u32; 3], tree: usize| -> Aabb {
+        let triangle_spread = &self.triangle_spread;
+        let leaf = |triangle: u32, tree: usize| -> Aabb {
+            let t = &triangles[triangle as usize];
             let mut lo = positions[t[0] as usize];
             let mut hi = lo;
             for &i in t {
@@ -754,8 +775,10 @@ impl ContactSet {
                 return Aabb::new(to_parry(&lo), to_parry(&hi));
             }
             let w = component_velocity[component[t[0] as usize] as usize];
+            // |u − v_c| + max_k |v_k − v_c| ≤ |u − w| + max_k |v_k − w| + τ_t for the point c
+            // met (`consider`'s reach), the query box holding |u − w|.
             let speed = t.iter().map(|&i| (velocities[i as usize] - w).norm()).fold(0.0, Real::max);
-            let margin = Vector3::repeat(surface.reach + h * speed);
+            let margin = Vector3::repeat(surface.reach + h * (speed + triangle_spread[triangle as usize]));
             Aabb::new(to_parry(&(lo - margin)), to_parry(&(hi + margin)))
         };
         let lists = self.component_triangles.iter().chain(&self.component_cut_triangles);
@@ -771,7 +794,7 @@ impl ContactSet {
                 .zip(self.component_triangles.par_iter().chain(self.component_cut_triangles.par_iter()))
                 .enumerate()
                 .map(|(tree, (reused, list))| {
-                    let leaves = list.iter().map(|&t| leaf(&triangles[t as usize], tree));
+                    let leaves = list.iter().map(|&t| leaf(t, tree));
                     match reused.flatten() {
                         Some(mut bvh) => {
                             refit_in_place(&mut bvh, leaves);
@@ -791,13 +814,13 @@ impl ContactSet {
             self.bvh_all.par_iter_mut().chain(self.bvh_cut.par_iter_mut()).zip(lists_par).enumerate().for_each(
                 |(tree, (bvh, list))| {
                     if list.len() < PARALLEL_REFIT_LEAVES {
-                        refit_in_place(bvh, list.iter().map(|&t| leaf(&triangles[t as usize], tree)));
+                        refit_in_place(bvh, list.iter().map(|&t| leaf(t, tree)));
                     }
                 },
             );
             for (tree, (bvh, list)) in self.bvh_all.iter_mut().chain(self.bvh_cut.iter_mut()).zip(lists).enumerate() {
                 if list.len() >= PARALLEL_REFIT_LEAVES {
-                    self.refit.refit(bvh, list.len(), |k| leaf(&triangles[list[k] as usize], tree));
+                    self.refit.refit(bvh, list.len(), |k| leaf(list[k], tree));
                 }
             }
         }
@@ -893,11 +916,17 @@ impl ContactSet {
                     // what is found depends on the triangles only, not on boxes, so not on how the
                     // scene is turned. Per triangle the reach is the surface's plus the step's
                     // approach, h(|u − v_t| + max_k |v_k − v_t|) with v_t the velocity of its point
-                    // (a convex combination of its corners'), which is at most h(|u − w_b| + 3 s_b)
-                    // with w_b the piece's mean velocity and s_b its points' largest speed relative
-                    // to it.
-                    let radius =
-                        surface.reach + h * ((u - this.component_velocity[b]).norm() + 3.0 * this.component_spread[b]);
+                    // (a convex combination of its corners'), which is at most
+                    // h(|u − w_b| + s_b + τ_b) with w_b the piece's mean velocity, s_b its points'
+                    // largest speed relative to it and τ_b the largest difference of two corners'
+                    // velocities in one of its triangles (a rotating piece: its points' speeds
+                    // relative to w_b grow with its size, τ_b only with its triangles'). The
+                    // factor keeps rounding from putting a triangle `consider` takes outside.
+                    let radius = (surface.reach
+                        + h * ((u - this.component_velocity[b]).norm()
+                            + this.component_spread[b]
+                            + this.component_triangle_spread[b]))
+                        * (1.0 + 1e-12);
                     let root = &this.roots_all[b];
                     if b == own || squared_distance_to_box(q_parry, root.mins, root.maxs) >= radius * radius {
                         continue;
