@@ -161,17 +161,12 @@ pub(crate) struct ContactSet {
     /// belongs to (triangles sharing vertices).
     rest: Vec<Point3<Real>>,
     component: Vec<u32>,
-    /// Points per component, and this step's mean velocity of each.
+    /// Points per component.
     component_points: Vec<u32>,
-    component_velocity: Vec<Vector3<Real>>,
-    /// This step's largest speed of a point of each component relative to its mean velocity.
-    component_spread: Vec<Real>,
-    /// This step's largest difference of two corners' velocities in a triangle, per triangle
-    /// and per component.
+    /// This step's largest difference of two corners' velocities in each triangle.
     triangle_spread: Vec<Real>,
-    component_triangle_spread: Vec<Real>,
-    /// This step's rigid motion fit to each component's point velocities.
-    component_rigid: Vec<RigidMotion>,
+    /// This step's motion of each component, what the search is bounded by.
+    motion: PieceMotion,
     /// Bound the search by the mean velocities alone (ω = 0 for every piece): the bounds before
     /// the rigid fit, which find the same pairs (a test compares the two).
     ignore_turning: bool,
@@ -233,59 +228,158 @@ struct RigidMotion {
     deviation: Real,
 }
 
-/// Fits each component's rigid motion to its points' positions and velocities (the
-/// least-squares angular velocity about its mean position, `J ω = Σ r × (v − w)` with
-/// `J = Σ |r|² I − r rᵀ`; none where `J` is singular) and measures how far the points'
-/// velocities deviate from it. Any `ω` gives a valid bound with its own deviation; the fit
-/// makes the deviation small. `components`: each point's component, the points per component
-/// and their mean velocities; `h` the step (0: no turning kept).
-fn fit_rigid_motions(
-    h: Real,
-    positions: &[Point3<Real>],
-    velocities: &[Vector3<Real>],
-    (component, points, mean_velocity): (&[u32], &[u32], &[Vector3<Real>]),
-    out: &mut Vec<RigidMotion>,
+/// The motion of every piece in a step, each measured over its points in parallel ranges whose
+/// partial results are combined in range order (the same numbers whatever the threads do).
+#[derive(Debug, Default)]
+struct PieceMotion {
+    /// Mean velocity of each piece's points.
+    velocity: Vec<Vector3<Real>>,
+    /// Largest speed of a piece's point relative to its mean velocity.
+    spread: Vec<Real>,
+    /// Largest difference of two corners' velocities in one of a piece's triangles (τ_b).
+    triangle_spread: Vec<Real>,
+    /// Rigid motion fit to each piece's points.
+    rigid: Vec<RigidMotion>,
+    /// Per point, how far its velocity deviates from its piece's rigid motion.
+    point_deviation: Vec<Real>,
+    /// Per range and piece partial results (no allocation after the first step).
+    sums: Vec<(Vector3<Real>, Vector3<Real>)>,
+    moments: Vec<(Real, Matrix3<Real>, Vector3<Real>)>,
+    maxima: Vec<Real>,
+}
+
+/// Ranges the per-piece measures split their points (or triangles) into.
+const MOTION_RANGES: usize = 16;
+
+/// Runs `fold(row, range)` for [`MOTION_RANGES`] consecutive ranges of `0..items` in parallel,
+/// each into its own `pieces`-long row of `scratch` (set to `zero` first).
+fn fold_ranges<A: Copy + Send>(
+    scratch: &mut Vec<A>,
+    pieces: usize,
+    items: usize,
+    zero: A,
+    fold: impl Fn(&mut [A], std::ops::Range<usize>) + Sync,
 ) {
-    let pieces = points.len();
-    let mut centers = vec![Vector3::zeros(); pieces];
-    for (p, &c) in positions.iter().zip(component) {
-        centers[c as usize] += p.coords;
-    }
-    for (center, &count) in centers.iter_mut().zip(points) {
-        *center /= count.max(1) as Real;
-    }
-    let mut inertia = vec![Matrix3::zeros(); pieces];
-    let mut moment = vec![Vector3::zeros(); pieces];
-    for ((p, v), &c) in positions.iter().zip(velocities).zip(component) {
-        let c = c as usize;
-        let r = p.coords - centers[c];
-        inertia[c] += Matrix3::identity() * r.norm_squared() - r * r.transpose();
-        moment[c] += r.cross(&(v - mean_velocity[c]));
-    }
-    out.clear();
-    out.extend(centers.iter().zip(&inertia).zip(&moment).map(|((center, j), l)| {
-        RigidMotion {
-            center: Point3::from(*center),
-            // A piece turning by more than half a radian in a step is bounded by its mean
-            // velocity alone (ω = 0, and the deviations are the speeds relative to it); so is
-            // every piece for `h = 0`.
-            angular: j
+    let length = items.div_ceil(MOTION_RANGES).max(1);
+    scratch.clear();
+    scratch.resize(MOTION_RANGES * pieces.max(1), zero);
+    scratch.par_chunks_mut(pieces.max(1)).enumerate().for_each(|(k, row)| {
+        fold(row, (k * length).min(items)..((k + 1) * length).min(items));
+    });
+}
+
+impl PieceMotion {
+    /// Measures the pieces' motions: mean velocities, spreads about them, the least-squares
+    /// angular velocity of each about its mean position (`J ω = Σ r × (v − w)`,
+    /// `J = Σ |r|² I − r rᵀ`; none where `J` is singular or the piece turns more than half a
+    /// radian in a step `h`, or for `h = 0`), each point's deviation from its piece's rigid
+    /// motion and each piece's largest, and the largest triangle spread. Any `ω` gives valid
+    /// bounds with its own deviations; the fit makes them small.
+    fn measure(
+        &mut self,
+        h: Real,
+        (positions, velocities): (&[Point3<Real>], &[Vector3<Real>]),
+        (component, points): (&[u32], &[u32]),
+        (triangles, triangle_spread): (&[[u32; 3]], &[Real]),
+    ) {
+        let pieces = points.len();
+        let n = positions.len();
+        // Mean positions and velocities.
+        fold_ranges(&mut self.sums, pieces, n, (Vector3::zeros(), Vector3::zeros()), |row, range| {
+            for i in range {
+                let sum = &mut row[component[i] as usize];
+                sum.0 += positions[i].coords;
+                sum.1 += velocities[i];
+            }
+        });
+        let mut centers = std::mem::take(&mut self.rigid);
+        centers.clear();
+        centers.resize(pieces, RigidMotion { center: Point3::origin(), angular: Vector3::zeros(), deviation: 0.0 });
+        self.velocity.clear();
+        self.velocity.resize(pieces, Vector3::zeros());
+        for row in self.sums.chunks(pieces.max(1)) {
+            for ((rigid, velocity), sum) in centers.iter_mut().zip(&mut self.velocity).zip(row) {
+                rigid.center.coords += sum.0;
+                *velocity += sum.1;
+            }
+        }
+        for ((rigid, velocity), &count) in centers.iter_mut().zip(&mut self.velocity).zip(points) {
+            rigid.center.coords /= count.max(1) as Real;
+            *velocity /= count.max(1) as Real;
+        }
+        // Spreads about the mean velocities, and the fit's moments.
+        let (mean, rigid) = (&self.velocity, &centers);
+        fold_ranges(&mut self.moments, pieces, n, (0.0, Matrix3::zeros(), Vector3::zeros()), |row, range| {
+            for i in range {
+                let c = component[i] as usize;
+                let (r, relative) = (positions[i] - rigid[c].center, velocities[i] - mean[c]);
+                let moment = &mut row[c];
+                moment.0 = moment.0.max(relative.norm());
+                moment.1 += Matrix3::identity() * r.norm_squared() - r * r.transpose();
+                moment.2 += r.cross(&relative);
+            }
+        });
+        self.spread.clear();
+        self.spread.resize(pieces, 0.0);
+        let (mut inertia, mut torque) = (vec![Matrix3::zeros(); pieces], vec![Vector3::zeros(); pieces]);
+        for row in self.moments.chunks(pieces.max(1)) {
+            for (c, moment) in row.iter().enumerate() {
+                self.spread[c] = self.spread[c].max(moment.0);
+                inertia[c] += moment.1;
+                torque[c] += moment.2;
+            }
+        }
+        for ((rigid, j), l) in centers.iter_mut().zip(&inertia).zip(&torque) {
+            rigid.angular = j
                 .try_inverse()
                 .map(|inverse| inverse * l)
                 .filter(|w| h > 0.0 && w.iter().all(|x| x.is_finite()) && h * w.norm() <= 0.5)
-                .unwrap_or_else(Vector3::zeros),
-            deviation: 0.0,
+                .unwrap_or_else(Vector3::zeros);
         }
-    }));
-    for ((p, v), &c) in positions.iter().zip(velocities).zip(component) {
-        let rigid = &mut out[c as usize];
-        let field = mean_velocity[c as usize] + rigid.angular.cross(&(p - rigid.center));
-        rigid.deviation = rigid.deviation.max((v - field).norm());
+        // Each point's deviation from its piece's rigid motion, and each piece's largest.
+        self.point_deviation.resize(n, 0.0);
+        let (mean, rigid) = (&self.velocity, &centers);
+        let length = n.div_ceil(MOTION_RANGES).max(1);
+        self.maxima.clear();
+        self.maxima.resize(MOTION_RANGES * pieces.max(1), 0.0);
+        self.point_deviation
+            .par_chunks_mut(length)
+            .zip(self.maxima.par_chunks_mut(pieces.max(1)))
+            .enumerate()
+            .for_each(|(k, (deviations, row))| {
+                for (offset, deviation) in deviations.iter_mut().enumerate() {
+                    let i = k * length + offset;
+                    let c = component[i] as usize;
+                    let field = mean[c] + rigid[c].angular.cross(&(positions[i] - rigid[c].center));
+                    *deviation = (velocities[i] - field).norm();
+                    row[c] = row[c].max(*deviation);
+                }
+            });
+        for row in self.maxima.chunks(pieces.max(1)) {
+            for (rigid, &deviation) in centers.iter_mut().zip(row) {
+                rigid.deviation = rigid.deviation.max(deviation);
+            }
+        }
+        self.rigid = centers;
+        // The largest triangle spread of each piece.
+        fold_ranges(&mut self.maxima, pieces, triangles.len(), 0.0, |row, range| {
+            for t in range {
+                let c = component[triangles[t][0] as usize] as usize;
+                row[c] = row[c].max(triangle_spread[t]);
+            }
+        });
+        self.triangle_spread.clear();
+        self.triangle_spread.resize(pieces, 0.0);
+        for row in self.maxima.chunks(pieces.max(1)) {
+            for (spread, &m) in self.triangle_spread.iter_mut().zip(row) {
+                *spread = spread.max(m);
+            }
+        }
     }
 }
 
 impl RigidMotion {
-    /// `1 − h|ω|`, at least a half ([`fit_rigid_motions`] keeps no faster turn).
+    /// `1 − h|ω|`, at least a half ([`PieceMotion::measure`] keeps no faster turn).
     fn shrink(&self, h: Real) -> Real {
         1.0 - h * self.angular.norm()
     }
@@ -807,36 +901,16 @@ impl ContactSet {
         // Motion is bounded relative to the mean velocity `w_b` of the piece searched:
         // |u_q − u_t| ≤ |u_q − w_b| + |u_t − w_b|, the second in the leaf boxes, the first in
         // the query. So a piece moving as a whole (falling, sliding) does not inflate its boxes
-        // by its motion, and a point is searched with only its speed relative to each piece.
-        self.component_velocity.clear();
-        self.component_velocity.resize(self.component_points.len(), Vector3::zeros());
-        for (i, &c) in self.component.iter().enumerate() {
-            self.component_velocity[c as usize] += velocities[i];
-        }
-        for (w, &count) in self.component_velocity.iter_mut().zip(&self.component_points) {
-            *w /= count.max(1) as Real;
-        }
-        self.component_spread.clear();
-        self.component_spread.resize(self.component_points.len(), 0.0);
-        for (i, &c) in self.component.iter().enumerate() {
-            let spread = &mut self.component_spread[c as usize];
-            *spread = spread.max((velocities[i] - self.component_velocity[c as usize]).norm());
-        }
-        self.component_triangle_spread.clear();
-        self.component_triangle_spread.resize(self.component_points.len(), 0.0);
-        for (triangle, &spread) in triangles.iter().zip(&self.triangle_spread) {
-            let c = self.component[triangle[0] as usize] as usize;
-            self.component_triangle_spread[c] = self.component_triangle_spread[c].max(spread);
-        }
-        fit_rigid_motions(
+        // by its motion, and a point is searched with only its speed relative to each piece;
+        // tighter still relative to its rigid motion (`RigidMotion`).
+        self.motion.measure(
             if self.ignore_turning { 0.0 } else { h },
-            positions,
-            velocities,
-            (&self.component, &self.component_points, &self.component_velocity),
-            &mut self.component_rigid,
+            (positions, velocities),
+            (&self.component, &self.component_points),
+            (triangles, &self.triangle_spread),
         );
-        let (component, component_velocity) = (&self.component, &self.component_velocity);
-        let component_rigid = &self.component_rigid;
+        let motion = &self.motion;
+        let component = &self.component;
         // A leaf box of a piece's whole surface is the triangle's own (the nearest-triangle
         // search below bounds its radius by the motion); a leaf box of its cut faces holds the
         // reach, the triangle's motion relative to the piece and the spread of its corners'
@@ -860,14 +934,8 @@ impl ContactSet {
             // reach + h(|u − v_p| + max_k |v_k − v_p|) is at least d only if
             // d (1 − h|ω|) ≤ reach + h(|u − f(q)| + max_k |v_k − f(x_k)| + τ_t): the leaf box
             // holds all of it but the query's |u − f(q)| (`own_query`), each over 1 − h|ω|.
-            let c = component[t[0] as usize] as usize;
-            let (w, rigid) = (component_velocity[c], &component_rigid[c]);
-            let deviation = t
-                .iter()
-                .map(|&i| {
-                    (velocities[i as usize] - w - rigid.angular.cross(&(positions[i as usize] - rigid.center))).norm()
-                })
-                .fold(0.0, Real::max);
+            let rigid = &motion.rigid[component[t[0] as usize] as usize];
+            let deviation = t.iter().map(|&i| motion.point_deviation[i as usize]).fold(0.0, Real::max);
             let margin = Vector3::repeat(
                 (surface.reach + h * (deviation + triangle_spread[triangle as usize])) / rigid.shrink(h)
                     * (1.0 + 1e-12),
@@ -941,8 +1009,8 @@ impl ContactSet {
                 let own = this.component[i] as usize;
                 // The point's own part of its own piece's cut-face leaf boxes (see `leaf`).
                 let own_query = || {
-                    let rigid = &this.component_rigid[own];
-                    let deviation = u - this.component_velocity[own] - rigid.angular.cross(&(q - rigid.center));
+                    let rigid = &this.motion.rigid[own];
+                    let deviation = u - this.motion.velocity[own] - rigid.angular.cross(&(q - rigid.center));
                     let motion = Vector3::repeat(h * deviation.norm() / rigid.shrink(h) * (1.0 + 1e-12));
                     Aabb::new(to_parry(&(q - motion)), to_parry(&(q + motion)))
                 };
@@ -1029,9 +1097,9 @@ impl ContactSet {
                     // relative to w_b grow with its size, τ_b only with its triangles'). The
                     // factor keeps rounding from putting a triangle `consider` takes outside.
                     let radius = (surface.reach
-                        + h * ((u - this.component_velocity[b]).norm()
-                            + this.component_spread[b]
-                            + this.component_triangle_spread[b]))
+                        + h * ((u - this.motion.velocity[b]).norm()
+                            + this.motion.spread[b]
+                            + this.motion.triangle_spread[b]))
                         * (1.0 + 1e-12);
                     let root = &this.roots_all[b];
                     if b == own || squared_distance_to_box(q_parry, root.mins, root.maxs) >= radius * radius {
@@ -1043,10 +1111,10 @@ impl ContactSet {
                     // (x − c) + δ, |u − v_t| ≤ |u − w − ω × (q − c)| + |ω| d + δ_b at distance d,
                     // so d ≤ reach_t needs d (1 − h|ω|) ≤ reach + h(|u − w − ω × (q − c)| + δ_b
                     // + τ_b).
-                    let rigid = &this.component_rigid[b];
-                    let relative = u - component_velocity[b] - rigid.angular.cross(&(q - rigid.center));
+                    let rigid = &this.motion.rigid[b];
+                    let relative = u - this.motion.velocity[b] - rigid.angular.cross(&(q - rigid.center));
                     let rigid_radius = (surface.reach
-                        + h * (relative.norm() + rigid.deviation + this.component_triangle_spread[b]))
+                        + h * (relative.norm() + rigid.deviation + this.motion.triangle_spread[b]))
                         / rigid.shrink(h)
                         * (1.0 + 1e-12);
                     let radius = radius.min(rigid_radius);
@@ -1156,7 +1224,7 @@ impl ContactSet {
         let (positions, velocities) = (&self.positions, &self.velocities);
         // Leaf box of a feature edge: its ends, the reach, and their motion relative to their
         // piece's mean velocity in one step (as the cut triangles' boxes, `detect_surface`).
-        let (component, component_velocity) = (&self.component, &self.component_velocity);
+        let (component, component_velocity) = (&self.component, &self.motion.velocity);
         let leaf = |g: u32| -> Aabb {
             let [p, q] = self.edges[g as usize];
             let w = component_velocity[component[p as usize] as usize];
@@ -1198,13 +1266,13 @@ impl ContactSet {
                 if b == own || list.is_empty() {
                     continue;
                 }
-                let w = this.component_velocity[b];
+                let w = this.motion.velocity[b];
                 let motion = Vector3::repeat(h * (speeds[0] - w).norm().max((speeds[1] - w).norm()));
                 let query =
                     Aabb::new(to_parry(&(ends[0].inf(&ends[1]) - motion)), to_parry(&(ends[0].sup(&ends[1]) + motion)));
                 // (The root box is the piece's triangles' own; the leaves of its edge tree lie
                 // within it loosened by the reach and the piece's spread of speeds.)
-                if !this.roots_all[b].loosened(surface.reach + h * this.component_spread[b]).intersects(&query) {
+                if !this.roots_all[b].loosened(surface.reach + h * this.motion.spread[b]).intersects(&query) {
                     continue;
                 }
                 for g in bvh.intersect_aabb(&query).map(|leaf| list[leaf as usize] as usize) {
