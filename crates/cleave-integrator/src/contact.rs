@@ -171,6 +171,9 @@ pub(crate) struct ContactSet {
     /// piece the largest move of a point since (its tree's boxes loosened by it hold the
     /// triangles); which trees this step refits, and the per-range scratch.
     refit_positions: Vec<Point3<Real>>,
+    /// Per piece this step, `reach + h(|w_b| + s_b + τ_b)` (rounded up): with `h|u|` added, at
+    /// least any point's search radius for the piece.
+    loose_reach: Vec<Real>,
     staleness: Vec<Real>,
     refit_now: Vec<bool>,
     staleness_ranges: Vec<Real>,
@@ -1031,6 +1034,14 @@ impl ContactSet {
         self.roots_all.clear();
         self.roots_all
             .extend(self.bvh_all.iter().zip(&self.staleness).map(|(bvh, &stale)| bvh.root_aabb().loosened(stale)));
+        // Per piece the search radius (below) less the point's own speed term, bounded from
+        // above: reach + h(|w_b| + s_b + τ_b).
+        self.loose_reach.clear();
+        self.loose_reach.extend((0..self.bvh_all.len()).map(|b| {
+            (surface.reach
+                + h * (self.motion.velocity[b].norm() + self.motion.spread[b] + self.motion.triangle_spread[b]))
+                * (1.0 + 1e-9)
+        }));
 
         let mut per_point = std::mem::take(&mut self.per_point);
         let mut near = std::mem::take(&mut self.near);
@@ -1128,7 +1139,15 @@ impl ContactSet {
                 // piece's rim "penetrate" a face beyond the rim by up to the reach (most of the
                 // deep contacts after a cut through touching pieces: docs/math/contact.md §5).
                 let q_parry = to_parry(&q);
+                let speed = h * u.norm();
                 for b in 0..this.bvh_all.len() {
+                    // Most pieces are far from most points: a bound on the radius below that
+                    // needs no square root (|u − w_b| ≤ |u| + |w_b|) rules them out first.
+                    let root = &this.roots_all[b];
+                    let loose = this.loose_reach[b] + speed * (1.0 + 1e-9);
+                    if b == own || squared_distance_to_box(q_parry, root.mins, root.maxs) >= loose * loose {
+                        continue;
+                    }
                     // The nearest triangle within the largest reach any triangle of the piece can
                     // have (`consider` below), by branch and bound on the triangles' own boxes:
                     // what is found depends on the triangles only, not on boxes, so not on how the
@@ -1145,8 +1164,7 @@ impl ContactSet {
                             + this.motion.spread[b]
                             + this.motion.triangle_spread[b]))
                         * (1.0 + 1e-12);
-                    let root = &this.roots_all[b];
-                    if b == own || squared_distance_to_box(q_parry, root.mins, root.maxs) >= radius * radius {
+                    if squared_distance_to_box(q_parry, root.mins, root.maxs) >= radius * radius {
                         continue;
                     }
                     // A piece that turns moves its points relative to its mean velocity by up to
