@@ -472,9 +472,7 @@ mod tests {
         // The grid's symmetric values (no nudge), so `mul_vec` is the matrix solved; large
         // enough that faer takes a supernodal factor (as on the bodies the integrator solves).
         let (pattern, values) = symmetric_grid_system();
-        let mut cholesky = SparseCholesky::new(&pattern).unwrap();
-        assert!(cholesky.permuted.is_some(), "a supernodal factor");
-        cholesky.factorize(&values).unwrap();
+        let mut cholesky = supernodal_factor(&pattern, &values);
         let dim = pattern.dim();
         for columns in [1, 3, 7, 2] {
             let truth: Vec<Real> = (0..dim * columns).map(|i| (i as Real * 0.37).sin() + (i / dim) as Real).collect();
@@ -486,6 +484,15 @@ mod tests {
             let error = rhs.iter().zip(&truth).map(|(a, t)| (a - t).abs()).fold(0.0, Real::max);
             assert!(error < 1e-10, "{columns} columns: max error {error}");
         }
+    }
+
+    /// The factorization of `values` on `pattern`, asserted supernodal (keeping the permuted
+    /// triangle), as on the bodies the integrator solves.
+    fn supernodal_factor(pattern: &AssemblyPattern, values: &[Real]) -> SparseCholesky {
+        let mut cholesky = SparseCholesky::new(pattern).unwrap();
+        assert!(cholesky.permuted.is_some(), "a supernodal factor keeps the permuted triangle");
+        cholesky.factorize(values).unwrap();
+        cholesky
     }
 
     /// A 7×7×7 grid of nodes coupled by its 6³ cubes (8 nodes each), values `Laplacian ⊗ B`
@@ -519,9 +526,7 @@ mod tests {
     #[test]
     fn the_kept_permuted_triangle_gives_faers_own_factor_bit_for_bit() {
         let (pattern, values) = grid_system();
-        let mut cholesky = SparseCholesky::new(&pattern).unwrap();
-        assert!(cholesky.permuted.is_some(), "a supernodal factor keeps the permuted triangle");
-        cholesky.factorize(&values).unwrap();
+        let mut cholesky = supernodal_factor(&pattern, &values);
         let mut faers = vec![0.0; cholesky.factor_values.len()];
         cholesky
             .symbolic

@@ -171,12 +171,12 @@ pub(crate) struct ContactSet {
     /// piece the largest move of a point since (its tree's boxes loosened by it hold the
     /// triangles); which trees this step refits, and the per-range scratch.
     refit_positions: Vec<Point3<Real>>,
-    /// Per piece this step, `reach + h(|w_b| + s_b + τ_b)` (rounded up): with `h|u|` added, at
-    /// least any point's search radius for the piece.
-    loose_reach: Vec<Real>,
     staleness: Vec<Real>,
     refit_now: Vec<bool>,
     staleness_ranges: Vec<Real>,
+    /// Per piece this step, `reach + h(|w_b| + s_b + τ_b)` (rounded up): with `h|u|` added, at
+    /// least any point's search radius for the piece.
+    loose_reach: Vec<Real>,
     /// Bound the search by the mean velocities alone (ω = 0 for every piece): the bounds before
     /// the rigid fit, which find the same pairs (a test compares the two).
     ignore_turning: bool,
@@ -252,10 +252,13 @@ struct PieceMotion {
     rigid: Vec<RigidMotion>,
     /// Per point, how far its velocity deviates from its piece's rigid motion.
     point_deviation: Vec<Real>,
-    /// Per range and piece partial results (no allocation after the first step).
+    /// Per range and piece partial results, and their totals per piece (no allocation after
+    /// the first step).
     sums: Vec<(Vector3<Real>, Vector3<Real>)>,
     moments: Vec<(Real, Matrix3<Real>, Vector3<Real>)>,
     maxima: Vec<Real>,
+    sum_totals: Vec<(Vector3<Real>, Vector3<Real>)>,
+    moment_totals: Vec<(Real, Matrix3<Real>, Vector3<Real>)>,
 }
 
 /// Ranges the per-piece measures split their points (or triangles) into.
@@ -278,6 +281,18 @@ fn fold_ranges<A: Copy + Send>(
     });
 }
 
+/// Combines the rows [`fold_ranges`] left in `scratch` into `out`, one entry per piece set to
+/// `zero` first, in range order.
+fn combine_rows<A, B: Clone>(scratch: &[A], pieces: usize, out: &mut Vec<B>, zero: B, combine: impl Fn(&mut B, &A)) {
+    out.clear();
+    out.resize(pieces, zero);
+    for row in scratch.chunks(pieces.max(1)) {
+        for (total, part) in out.iter_mut().zip(row) {
+            combine(total, part);
+        }
+    }
+}
+
 impl PieceMotion {
     /// Measures the pieces' motions: mean velocities, spreads about them, the least-squares
     /// angular velocity of each about its mean position (`J ω = Σ r × (v − w)`,
@@ -295,31 +310,30 @@ impl PieceMotion {
         let pieces = points.len();
         let n = positions.len();
         // Mean positions and velocities.
-        fold_ranges(&mut self.sums, pieces, n, (Vector3::zeros(), Vector3::zeros()), |row, range| {
+        let zero = (Vector3::zeros(), Vector3::zeros());
+        fold_ranges(&mut self.sums, pieces, n, zero, |row, range| {
             for i in range {
                 let sum = &mut row[component[i] as usize];
                 sum.0 += positions[i].coords;
                 sum.1 += velocities[i];
             }
         });
-        let mut centers = std::mem::take(&mut self.rigid);
-        centers.clear();
-        centers.resize(pieces, RigidMotion { center: Point3::origin(), angular: Vector3::zeros(), deviation: 0.0 });
+        combine_rows(&self.sums, pieces, &mut self.sum_totals, zero, |total, part| {
+            total.0 += part.0;
+            total.1 += part.1;
+        });
+        self.rigid.clear();
         self.velocity.clear();
-        self.velocity.resize(pieces, Vector3::zeros());
-        for row in self.sums.chunks(pieces.max(1)) {
-            for ((rigid, velocity), sum) in centers.iter_mut().zip(&mut self.velocity).zip(row) {
-                rigid.center.coords += sum.0;
-                *velocity += sum.1;
-            }
-        }
-        for ((rigid, velocity), &count) in centers.iter_mut().zip(&mut self.velocity).zip(points) {
-            rigid.center.coords /= count.max(1) as Real;
-            *velocity /= count.max(1) as Real;
+        for (total, &count) in self.sum_totals.iter().zip(points) {
+            let count = count.max(1) as Real;
+            let center = Point3::from(total.0 / count);
+            self.rigid.push(RigidMotion { center, angular: Vector3::zeros(), deviation: 0.0 });
+            self.velocity.push(total.1 / count);
         }
         // Spreads about the mean velocities, and the fit's moments.
-        let (mean, rigid) = (&self.velocity, &centers);
-        fold_ranges(&mut self.moments, pieces, n, (0.0, Matrix3::zeros(), Vector3::zeros()), |row, range| {
+        let (mean, rigid) = (&self.velocity, &self.rigid);
+        let zero = (0.0, Matrix3::zeros(), Vector3::zeros());
+        fold_ranges(&mut self.moments, pieces, n, zero, |row, range| {
             for i in range {
                 let c = component[i] as usize;
                 let (r, relative) = (positions[i] - rigid[c].center, velocities[i] - mean[c]);
@@ -329,26 +343,24 @@ impl PieceMotion {
                 moment.2 += r.cross(&relative);
             }
         });
+        combine_rows(&self.moments, pieces, &mut self.moment_totals, zero, |total, part| {
+            total.0 = total.0.max(part.0);
+            total.1 += part.1;
+            total.2 += part.2;
+        });
         self.spread.clear();
-        self.spread.resize(pieces, 0.0);
-        let (mut inertia, mut torque) = (vec![Matrix3::zeros(); pieces], vec![Vector3::zeros(); pieces]);
-        for row in self.moments.chunks(pieces.max(1)) {
-            for (c, moment) in row.iter().enumerate() {
-                self.spread[c] = self.spread[c].max(moment.0);
-                inertia[c] += moment.1;
-                torque[c] += moment.2;
-            }
-        }
-        for ((rigid, j), l) in centers.iter_mut().zip(&inertia).zip(&torque) {
+        self.spread.extend(self.moment_totals.iter().map(|total| total.0));
+        for (rigid, (_, j, l)) in self.rigid.iter_mut().zip(&self.moment_totals) {
             rigid.angular = j
                 .try_inverse()
                 .map(|inverse| inverse * l)
                 .filter(|w| h > 0.0 && w.iter().all(|x| x.is_finite()) && h * w.norm() <= 0.5)
                 .unwrap_or_else(Vector3::zeros);
         }
-        // Each point's deviation from its piece's rigid motion, and each piece's largest.
+        // Each point's deviation from its piece's rigid motion (in the ranges of `fold_ranges`,
+        // written per point as well), and each piece's largest.
         self.point_deviation.resize(n, 0.0);
-        let (mean, rigid) = (&self.velocity, &centers);
+        let (mean, rigid) = (&self.velocity, &self.rigid);
         let length = n.div_ceil(MOTION_RANGES).max(1);
         self.maxima.clear();
         self.maxima.resize(MOTION_RANGES * pieces.max(1), 0.0);
@@ -366,11 +378,10 @@ impl PieceMotion {
                 }
             });
         for row in self.maxima.chunks(pieces.max(1)) {
-            for (rigid, &deviation) in centers.iter_mut().zip(row) {
+            for (rigid, &deviation) in self.rigid.iter_mut().zip(row) {
                 rigid.deviation = rigid.deviation.max(deviation);
             }
         }
-        self.rigid = centers;
         // The largest triangle spread of each piece.
         fold_ranges(&mut self.maxima, pieces, triangles.len(), 0.0, |row, range| {
             for t in range {
@@ -378,13 +389,7 @@ impl PieceMotion {
                 row[c] = row[c].max(triangle_spread[t]);
             }
         });
-        self.triangle_spread.clear();
-        self.triangle_spread.resize(pieces, 0.0);
-        for row in self.maxima.chunks(pieces.max(1)) {
-            for (spread, &m) in self.triangle_spread.iter_mut().zip(row) {
-                *spread = spread.max(m);
-            }
-        }
+        combine_rows(&self.maxima, pieces, &mut self.triangle_spread, 0.0, |total, &part| *total = total.max(part));
     }
 }
 
@@ -993,12 +998,9 @@ impl ContactSet {
                     row[c] = row[c].max((positions[i] - refit_positions[i]).norm());
                 }
             });
-            self.staleness.iter_mut().for_each(|s| *s = 0.0);
-            for row in self.staleness_ranges.chunks(num_whole.max(1)) {
-                for (stale, &moved) in self.staleness.iter_mut().zip(row) {
-                    *stale = stale.max(moved);
-                }
-            }
+            combine_rows(&self.staleness_ranges, num_whole, &mut self.staleness, 0.0, |stale, &moved| {
+                *stale = stale.max(moved)
+            });
             let limit = STALE_REACH * surface.reach;
             self.refit_now.clear();
             self.refit_now.extend(self.staleness.iter().map(|&s| s > limit || s.is_nan()));
@@ -1086,10 +1088,10 @@ impl ContactSet {
                                 .fold(0.0, Real::max));
                     candidate.distance <= reach && candidate.gap >= -surface.reach
                 };
-                // Per searched surface its pair for this point; the smallest gap wins.
+                // Per searched surface its pair for this point, within reach; the smallest gap wins.
                 let mut best: Option<Candidate> = None;
-                let mut consider = |candidate: Candidate| {
-                    if within_reach(&candidate) && best.as_ref().is_none_or(|b| candidate.gap < b.gap) {
+                let mut keep = |candidate: Candidate| {
+                    if best.as_ref().is_none_or(|b| candidate.gap < b.gap) {
                         best = Some(candidate);
                     }
                 };
@@ -1129,7 +1131,7 @@ impl ContactSet {
                         }
                     }
                     if let Some(candidate) = nearest {
-                        consider(candidate);
+                        keep(candidate);
                     }
                 }
                 // Every other piece by its signed distance: the nearest triangle of its closed
@@ -1138,6 +1140,12 @@ impl ContactSet {
                 // faces the wrong way, as a facing filter does, made points on or beside another
                 // piece's rim "penetrate" a face beyond the rim by up to the reach (most of the
                 // deep contacts after a cut through touching pieces: docs/math/contact.md §5).
+                // Another piece's nearest triangle counts within reach.
+                let mut consider = |candidate: Candidate| {
+                    if within_reach(&candidate) {
+                        keep(candidate);
+                    }
+                };
                 let q_parry = to_parry(&q);
                 let speed = h * u.norm();
                 for b in 0..this.bvh_all.len() {
@@ -1924,6 +1932,19 @@ mod tests {
         (constraints, rest)
     }
 
+    /// A pair's points, weights, normal and depth, the numbers as bits.
+    type PairBits = ([u32; 4], [u64; 4], Vector3<u64>, u64);
+
+    /// The contacts and near pairs of a set's last detection, each as its bits.
+    fn pairs_bit_for_bit(set: &ContactSet) -> (Vec<PairBits>, Vec<PairBits>) {
+        let bits = |row: &Row, normal: &Vector3<Real>, depth: Real| -> PairBits {
+            (row.points, row.weights.map(Real::to_bits), normal.map(Real::to_bits), depth.to_bits())
+        };
+        let contacts = set.contacts.iter().map(|c| bits(&c.row, &c.normal, c.depth)).collect();
+        let near = set.near.iter().flatten().map(|p| bits(&p.row, &p.normal, p.gap.0)).collect();
+        (contacts, near)
+    }
+
     /// The pairs (contacts and near pairs) that detection finds at `x`, `v`, with the search
     /// bounded by the pieces' rigid motions and by their mean velocities alone, asserted equal
     /// bit for bit; returns how many.
@@ -1932,12 +1953,7 @@ mod tests {
             let mut set = ContactSet::new(constraints, rest);
             set.ignore_turning = ignore_turning;
             set.detect(constraints, x, v, h, &Vector3::zeros());
-            let key = |row: &Row, normal: &Vector3<Real>, depth: Real| {
-                (row.points, row.weights.map(Real::to_bits), normal.map(Real::to_bits), depth.to_bits())
-            };
-            let contacts: Vec<_> = set.contacts.iter().map(|c| key(&c.row, &c.normal, c.depth)).collect();
-            let near: Vec<_> = set.near.iter().flatten().map(|p| key(&p.row, &p.normal, p.gap.0)).collect();
-            (contacts, near)
+            pairs_bit_for_bit(&set)
         };
         let (turning, mean) = (found(false), found(true));
         assert_eq!(turning, mean, "x = {x:?}, v = {v:?}");
@@ -2067,15 +2083,7 @@ mod tests {
             kept.detect(&constraints, &x, &v, h, &Vector3::zeros());
             let mut fresh = ContactSet::new(&constraints, &rest);
             fresh.detect(&constraints, &x, &v, h, &Vector3::zeros());
-            let key = |set: &ContactSet| {
-                let key = |row: &Row, normal: &Vector3<Real>, depth: Real| {
-                    (row.points, row.weights.map(Real::to_bits), normal.map(Real::to_bits), depth.to_bits())
-                };
-                let contacts: Vec<_> = set.contacts.iter().map(|c| key(&c.row, &c.normal, c.depth)).collect();
-                let near: Vec<_> = set.near.iter().flatten().map(|p| key(&p.row, &p.normal, p.gap.0)).collect();
-                (contacts, near)
-            };
-            assert_eq!(key(&kept), key(&fresh), "centre {centre:?}");
+            assert_eq!(pairs_bit_for_bit(&kept), pairs_bit_for_bit(&fresh), "centre {centre:?}");
             pairs += kept.contacts.len() + kept.near.iter().flatten().count();
             stale_steps += usize::from(kept.staleness.iter().any(|&s| s > 0.0));
         }
