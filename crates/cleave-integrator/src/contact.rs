@@ -1346,8 +1346,8 @@ impl ContactSet {
                 .zip(self.component_feature_edges.par_iter())
                 .for_each(|(bvh, list)| refit_in_place(bvh, list.iter().map(|&g| leaf(g))));
         }
+        // Every slot is written below.
         let mut per_edge = std::mem::take(&mut self.per_edge);
-        per_edge.clear();
         per_edge.resize(self.feature_edges.len(), None);
         let this = &*self;
         let params = (surface.stiffness, surface.damping, surface.friction);
@@ -1369,8 +1369,10 @@ impl ContactSet {
             let candidates =
                 &this.piece_candidates[this.piece_candidate_offsets[own]..this.piece_candidate_offsets[own + 1]];
             for b in candidates.iter().map(|&b| b as usize) {
+                // A pair is taken from its lower-numbered edge, and a piece's list is in
+                // increasing order: a piece whose edges all come before this one has none.
                 let (bvh, list) = (&this.bvh_edges[b], &this.component_feature_edges[b]);
-                if list.is_empty() {
+                if list.last().is_none_or(|&last| (last as usize) < e) {
                     continue;
                 }
                 let w = this.motion.velocity[b];
