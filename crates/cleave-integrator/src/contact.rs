@@ -1666,9 +1666,16 @@ pub(crate) fn add_matrix(points: &Embedding, set: &ContactSet, pattern: &Assembl
     pattern.for_column_ranges(&bounds, values, &|columns, values, base| {
         for (c, range) in set.contacts.iter().zip(offsets.windows(2)) {
             let entries = &all[range[0]..range[1]];
-            for &(j, wj) in entries.iter().filter(|&&(j, _)| columns.contains(&j)) {
+            // The entries are sorted by node: those of this range's columns are consecutive,
+            // and for each column its rows' ranks increase, found in one walk along its list.
+            let first = entries.partition_point(|e| e.0 < columns.start);
+            let last = first + entries[first..].partition_point(|e| e.0 < columns.end);
+            for &(j, wj) in &entries[first..last] {
+                let neighbours = pattern.neighbours(j);
+                let mut rank = 0;
                 for &(i, wi) in entries {
-                    let rank = pattern.rank(i, j).expect("the pattern holds every contact row's couplings");
+                    rank += neighbours[rank..].partition_point(|&k| k < i);
+                    assert!(neighbours.get(rank) == Some(&i), "the pattern holds every contact row's couplings");
                     for col in 0..3 {
                         let at = col_ptr[3 * j as usize + col] + 3 * rank as usize - base;
                         for row in 0..3 {
