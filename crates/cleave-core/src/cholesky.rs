@@ -11,12 +11,18 @@
 //! (the factor has exactly the same nonzeros) but only after reading the whole scalar graph, which
 //! on the 10×10×10 quadratic DG grid of kaufmann2008 Table 1 took 2–3× longer than the whole
 //! symbolic factorization does now.
+//!
+//! The permuted matrix is built here too, at the node level, and faer analyses and factorizes it
+//! in the identity order: the upper triangle of `P A Pᵀ` for the symbolic analysis, the lower for
+//! the numeric factorizations, and the solves apply `P` themselves. faer's own permutation of the
+//! scalar pattern cost as much as its elimination tree and column counts together (about a
+//! third of every symbolic factorization, one per contact pattern growth on `bunny_slice.ron`);
+//! the factor is the same bit for bit (a test compares the two).
 
 use crate::Real;
 use crate::assembly::AssemblyPattern;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
-use faer::perm::PermRef;
 use faer::sparse::linalg::amd;
 use faer::sparse::linalg::cholesky::{
     LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering, factorize_symbolic_cholesky, supernodal,
@@ -42,17 +48,20 @@ pub enum CholeskyError {
 
 /// The symbolic factorization of one pattern and the storage for its numeric factor.
 pub struct SparseCholesky {
-    matrix: SymbolicSparseColMat<usize>,
+    /// Symbolic factorization of `P A Pᵀ` in the identity order.
     symbolic: SymbolicCholesky<usize>,
+    /// The scalar order (`perm[new] = old`).
+    perm: Vec<usize>,
+    /// Right-hand sides in elimination order (grown on demand to the columns solved).
+    permuted_rhs: Vec<Real>,
     factor_values: Vec<Real>,
     scratch: MemBuffer,
     /// Workspace of multi-column solves and how many columns it holds (grown on demand).
     column_scratch: (usize, MemBuffer),
     factored: bool,
     order_groups: usize,
-    /// For a supernodal factor: the matrix's lower triangle in elimination order (once per
-    /// pattern).
-    permuted: Option<PermutedLower>,
+    /// The matrix's lower triangle in elimination order (once per pattern).
+    permuted: PermutedLower,
 }
 
 /// The lower triangle of `P A Pᵀ` as the supernodal factorization reads it, and for each of its
@@ -70,18 +79,10 @@ impl PermutedLower {
     /// The entries `A[i][j]` with `i ≥ j` (the lower triangle faer reads with `Side::Lower`),
     /// each at row `max(p(i), p(j))`, column `min(p(i), p(j))` of the permuted matrix, `p` the
     /// new index of an old one: the same entries faer's permutation keeps, so the factor is the
-    /// same bit for bit. Built column by column of the new order at the node level (the order
-    /// keeps a node's three components consecutive); `None` for an order that does not.
-    fn new(pattern: &AssemblyPattern, perm_inv: &[usize]) -> Option<Self> {
+    /// same bit for bit. Built column by column of the new order at the node level (`new_node`
+    /// and its inverse `old_node`: the order keeps a node's three components consecutive).
+    fn new(pattern: &AssemblyPattern, new_node: &[usize], old_node: &[u32]) -> Self {
         let nodes = pattern.num_nodes();
-        let new_node: Vec<usize> = (0..nodes).map(|n| perm_inv[3 * n] / 3).collect();
-        if (0..3 * nodes).any(|d| perm_inv[d] != 3 * new_node[d / 3] + d % 3) {
-            return None;
-        }
-        let mut old_node = vec![0u32; nodes];
-        for (n, &p) in new_node.iter().enumerate() {
-            old_node[p] = n as u32;
-        }
         // Rank of node j in the list of each of its neighbours i (the lists are sorted and
         // symmetric: visiting j in increasing order meets each list's entries in order).
         let mut offsets = Vec::with_capacity(nodes + 1);
@@ -132,14 +133,38 @@ impl PermutedLower {
         }
         let values = vec![0.0; source.len()];
         let matrix = SymbolicSparseColMat::new_unsorted_checked(dim, dim, col_ptr, None, row_idx);
-        Some(Self { matrix, source, values })
+        Self { matrix, source, values }
     }
+}
+
+/// The structure of the upper triangle of `P A Pᵀ` (diagonal included), built at the node level
+/// (`new_node[old]`, the order keeps a node's three components consecutive): column `3p + b`
+/// holds the rows `3q + a` of the neighbours `q < p` and `3p + a`, `a ≤ b`; rows unsorted, as
+/// faer's own permutation leaves them.
+fn permuted_upper(pattern: &AssemblyPattern, new_node: &[usize], old_node: &[u32]) -> SymbolicSparseColMat<usize> {
+    let dim = 3 * pattern.num_nodes();
+    let mut col_ptr = Vec::with_capacity(dim + 1);
+    let mut row_idx = Vec::with_capacity(pattern.nnz() / 2 + dim);
+    col_ptr.push(0);
+    for (p, &j) in old_node.iter().enumerate() {
+        for b in 0..3 {
+            for &i in pattern.neighbours(j) {
+                let q = new_node[i as usize];
+                if q < p {
+                    row_idx.extend([3 * q, 3 * q + 1, 3 * q + 2]);
+                }
+            }
+            row_idx.extend((0..=b).map(|a| 3 * p + a));
+            col_ptr.push(row_idx.len());
+        }
+    }
+    SymbolicSparseColMat::new_unsorted_checked(dim, dim, col_ptr, None, row_idx)
 }
 
 impl std::fmt::Debug for SparseCholesky {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("SparseCholesky")
-            .field("dim", &self.matrix.nrows())
+            .field("dim", &self.perm.len())
             .field("factor_nnz", &self.factor_nnz())
             .field("order_groups", &self.order_groups)
             .finish()
@@ -160,25 +185,29 @@ impl SparseCholesky {
     /// Orders the node graph of `pattern` and builds the symbolic factorization (once per pattern).
     pub fn new(pattern: &AssemblyPattern) -> Result<Self, CholeskyError> {
         let dim = pattern.dim();
-        let matrix =
-            SymbolicSparseColMat::new_checked(dim, dim, pattern.col_ptr().to_vec(), None, pattern.row_idx().to_vec());
         let graph = QuotientGraph::new(pattern);
         let ordering = graph.expand(&graph.amd()?);
-        // The permuted lower triangle beside the symbolic analysis (both sequential; on a busy
-        // pool the second waits for a free thread).
+        let nodes = pattern.num_nodes();
+        let new_node: Vec<usize> = (0..nodes).map(|n| ordering.perm_inv[3 * n] / 3).collect();
+        let mut old_node = vec![0u32; nodes];
+        for (n, &p) in new_node.iter().enumerate() {
+            old_node[p] = n as u32;
+        }
+        // The permuted lower triangle beside the symbolic analysis of the upper (both
+        // sequential; on a busy pool the second waits for a free thread).
         let (symbolic, permuted) = rayon::join(
             || {
+                let upper = permuted_upper(pattern, &new_node, &old_node);
                 factorize_symbolic_cholesky(
-                    matrix.as_ref(),
-                    Side::Lower,
-                    SymmetricOrdering::Custom(PermRef::new_checked(&ordering.perm, &ordering.perm_inv, dim)),
+                    upper.as_ref(),
+                    Side::Upper,
+                    SymmetricOrdering::Identity,
                     Default::default(),
                 )
             },
-            || PermutedLower::new(pattern, &ordering.perm_inv),
+            || PermutedLower::new(pattern, &new_node, &old_node),
         );
         let symbolic = symbolic.map_err(|e| CholeskyError::Setup(format!("symbolic factorization: {e:?}")))?;
-        let permuted = permuted.filter(|_| matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)));
         let order_groups = ordering.groups;
         let par = parallelism();
         let supernodal_scratch = match symbolic.raw() {
@@ -195,7 +224,17 @@ impl SparseCholesky {
         .map_err(|_| CholeskyError::Setup("out of memory for the Cholesky workspace".into()))?;
         let factor_values = crate::assembly::resident_zeros(symbolic.len_val());
         let column_scratch = (0, MemBuffer::new(StackReq::empty()));
-        Ok(Self { matrix, symbolic, factor_values, scratch, column_scratch, factored: false, order_groups, permuted })
+        Ok(Self {
+            symbolic,
+            perm: ordering.perm,
+            permuted_rhs: vec![0.0; dim],
+            factor_values,
+            scratch,
+            column_scratch,
+            factored: false,
+            order_groups,
+            permuted,
+        })
     }
 
     /// Nonzeros of the factor `L`.
@@ -211,27 +250,26 @@ impl SparseCholesky {
     /// Numeric factorization of the matrix with `values` on the pattern (both triangles stored;
     /// the lower one is read).
     pub fn factorize(&mut self, values: &[Real]) -> Result<(), CholeskyError> {
-        let result = match (&mut self.permuted, self.symbolic.raw()) {
-            (Some(permuted), SymbolicCholeskyRaw::Supernodal(raw)) => {
-                for (value, &k) in permuted.values.iter_mut().zip(&permuted.source) {
-                    *value = values[k];
-                }
-                supernodal::factorize_supernodal_numeric_llt::<usize, Real>(
-                    &mut self.factor_values,
-                    SparseColMatRef::new(permuted.matrix.as_ref(), &permuted.values),
-                    LltRegularization::default(),
-                    raw,
-                    parallelism(),
-                    MemStack::new(&mut self.scratch),
-                    Default::default(),
-                )
-                .map(|_| ())
-            }
-            _ => self
+        let permuted = &mut self.permuted;
+        for (value, &k) in permuted.values.iter_mut().zip(&permuted.source) {
+            *value = values[k];
+        }
+        let result = match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(raw) => supernodal::factorize_supernodal_numeric_llt::<usize, Real>(
+                &mut self.factor_values,
+                SparseColMatRef::new(permuted.matrix.as_ref(), &permuted.values),
+                LltRegularization::default(),
+                raw,
+                parallelism(),
+                MemStack::new(&mut self.scratch),
+                Default::default(),
+            )
+            .map(|_| ()),
+            SymbolicCholeskyRaw::Simplicial(_) => self
                 .symbolic
                 .factorize_numeric_llt::<Real>(
                     &mut self.factor_values,
-                    SparseColMatRef::new(self.matrix.as_ref(), values),
+                    SparseColMatRef::new(permuted.matrix.as_ref(), &permuted.values),
                     Side::Lower,
                     LltRegularization::default(),
                     parallelism(),
@@ -267,7 +305,7 @@ impl SparseCholesky {
     /// `columns` columns: caller bugs.
     pub fn solve_columns_in_place(&mut self, rhs: &mut [Real], columns: usize) {
         assert!(self.factored, "SparseCholesky::solve before a successful factorize");
-        let n = self.matrix.nrows();
+        let n = self.perm.len();
         assert_eq!(rhs.len(), n * columns, "solve_columns_in_place: rhs holds {columns} columns of {n}");
         if columns == 0 {
             return;
@@ -276,17 +314,61 @@ impl SparseCholesky {
         if self.column_scratch.0 < columns {
             self.column_scratch = (columns, MemBuffer::new(self.symbolic.solve_in_place_scratch::<Real>(columns, par)));
         }
-        let llt = LltRef::<'_, usize, Real>::new(&self.symbolic, &self.factor_values);
-        let rhs = MatMut::from_column_major_slice_mut(rhs, n, columns);
-        llt.solve_in_place_with_conj(Conj::No, rhs, par, MemStack::new(&mut self.column_scratch.1));
+        let scratch = MemStack::new(&mut self.column_scratch.1);
+        Self::solve_permuted(
+            &self.symbolic,
+            &self.factor_values,
+            &self.perm,
+            &mut self.permuted_rhs,
+            rhs,
+            par,
+            scratch,
+        );
     }
 
     fn solve_with(&mut self, rhs: &mut [Real], par: Par) {
         assert!(self.factored, "SparseCholesky::solve before a successful factorize");
-        let llt = LltRef::<'_, usize, Real>::new(&self.symbolic, &self.factor_values);
-        let n = rhs.len();
-        let rhs = MatMut::from_column_major_slice_mut(rhs, n, 1);
-        llt.solve_in_place_with_conj(Conj::No, rhs, par, MemStack::new(&mut self.scratch));
+        let scratch = MemStack::new(&mut self.scratch);
+        Self::solve_permuted(
+            &self.symbolic,
+            &self.factor_values,
+            &self.perm,
+            &mut self.permuted_rhs,
+            rhs,
+            par,
+            scratch,
+        );
+    }
+
+    /// `rhs ← A⁻¹ rhs` for the columns of `rhs`: each permuted into `P rhs`, solved with the
+    /// factor of `P A Pᵀ`, and permuted back (what faer does with an order of its own).
+    fn solve_permuted(
+        symbolic: &SymbolicCholesky<usize>,
+        factor_values: &[Real],
+        perm: &[usize],
+        permuted: &mut Vec<Real>,
+        rhs: &mut [Real],
+        par: Par,
+        scratch: &mut MemStack,
+    ) {
+        let n = perm.len();
+        let columns = rhs.len() / n.max(1);
+        if permuted.len() < rhs.len() {
+            permuted.resize(rhs.len(), 0.0);
+        }
+        let permuted = &mut permuted[..rhs.len()];
+        for (to, from) in permuted.chunks_mut(n).zip(rhs.chunks(n)) {
+            for (x, &old) in to.iter_mut().zip(perm) {
+                *x = from[old];
+            }
+        }
+        let llt = LltRef::<'_, usize, Real>::new(symbolic, factor_values);
+        llt.solve_in_place_with_conj(Conj::No, MatMut::from_column_major_slice_mut(permuted, n, columns), par, scratch);
+        for (from, to) in permuted.chunks(n).zip(rhs.chunks_mut(n)) {
+            for (&x, &old) in from.iter().zip(perm) {
+                to[old] = x;
+            }
+        }
     }
 }
 
@@ -490,7 +572,7 @@ mod tests {
     /// triangle), as on the bodies the integrator solves.
     fn supernodal_factor(pattern: &AssemblyPattern, values: &[Real]) -> SparseCholesky {
         let mut cholesky = SparseCholesky::new(pattern).unwrap();
-        assert!(cholesky.permuted.is_some(), "a supernodal factor keeps the permuted triangle");
+        assert!(matches!(cholesky.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)), "a supernodal factor");
         cholesky.factorize(values).unwrap();
         cholesky
     }
@@ -523,20 +605,42 @@ mod tests {
         (pattern, values)
     }
 
+    /// The permuted triangles built at the node level (the upper analysed, the lower factorized,
+    /// both in the identity order) give the factor faer computes from the pattern and the same
+    /// order with its own permutation, bit for bit, and the solves agree with faer's.
     #[test]
-    fn the_kept_permuted_triangle_gives_faers_own_factor_bit_for_bit() {
+    fn the_node_level_permuted_triangles_give_faers_own_factor_bit_for_bit() {
         let (pattern, values) = grid_system();
         let mut cholesky = supernodal_factor(&pattern, &values);
+        let dim = pattern.dim();
+        let matrix =
+            SymbolicSparseColMat::new_checked(dim, dim, pattern.col_ptr().to_vec(), None, pattern.row_idx().to_vec());
+        let perm_inv = {
+            let mut inverse = vec![0; dim];
+            for (new, &old) in cholesky.perm.iter().enumerate() {
+                inverse[old] = new;
+            }
+            inverse
+        };
+        let faers_symbolic = factorize_symbolic_cholesky(
+            matrix.as_ref(),
+            Side::Lower,
+            SymmetricOrdering::Custom(faer::perm::PermRef::new_checked(&cholesky.perm, &perm_inv, dim)),
+            Default::default(),
+        )
+        .unwrap();
+        assert_eq!(faers_symbolic.len_val(), cholesky.factor_nnz());
         let mut faers = vec![0.0; cholesky.factor_values.len()];
-        cholesky
-            .symbolic
+        faers_symbolic
             .factorize_numeric_llt::<Real>(
                 &mut faers,
-                SparseColMatRef::new(cholesky.matrix.as_ref(), &values),
+                SparseColMatRef::new(matrix.as_ref(), &values),
                 Side::Lower,
                 LltRegularization::default(),
                 Par::Seq,
-                MemStack::new(&mut cholesky.scratch),
+                MemStack::new(&mut MemBuffer::new(
+                    faers_symbolic.factorize_numeric_llt_scratch::<Real>(Par::Seq, Default::default()),
+                )),
                 Default::default(),
             )
             .unwrap();
@@ -556,7 +660,16 @@ mod tests {
                 }
             }
         }
+        let mut faers_solution = rhs.clone();
+        let mut solve_scratch = MemBuffer::new(faers_symbolic.solve_in_place_scratch::<Real>(1, Par::Seq));
+        LltRef::<'_, usize, Real>::new(&faers_symbolic, &faers).solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(&mut faers_solution, dim, 1),
+            Par::Seq,
+            MemStack::new(&mut solve_scratch),
+        );
         cholesky.solve_in_place(&mut rhs);
+        assert!(rhs.iter().zip(&faers_solution).all(|(a, b)| a.to_bits() == b.to_bits()));
         let error = rhs.iter().zip(&x_true).map(|(a, t)| (a - t).abs()).fold(0.0, Real::max);
         assert!(error < 1e-10, "max error {error}");
     }
