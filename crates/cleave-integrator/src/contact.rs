@@ -819,8 +819,10 @@ impl ContactSet {
         let n = points.len();
         self.positions.resize(n, Point3::origin());
         self.velocities.resize(n, Vector3::zeros());
-        self.positions.par_iter_mut().enumerate().for_each(|(i, p)| *p = points.point(x, i));
-        self.velocities.par_iter_mut().enumerate().for_each(|(i, u)| *u = points.point(v, i).coords);
+        self.positions.par_iter_mut().zip(self.velocities.par_iter_mut()).enumerate().for_each(|(i, (p, u))| {
+            *p = points.point(x, i);
+            *u = points.point(v, i).coords;
+        });
         let colliders = constraints.planes.len() + constraints.meshes.len() + 1;
         if self.lagged.len() != colliders * n + self.feature_edges.len() {
             self.lagged = vec![0.0; colliders * n + self.feature_edges.len()];
