@@ -1679,7 +1679,7 @@ pub(crate) fn add_matrix(points: &Embedding, set: &ContactSet, pattern: &Assembl
                     rank += neighbours[rank..].partition_point(|&k| k < i);
                     assert!(neighbours.get(rank) == Some(&i), "the pattern holds every contact row's couplings");
                     for col in 0..3 {
-                        let at = col_ptr[3 * j as usize + col] + 3 * rank as usize - base;
+                        let at = col_ptr[3 * j as usize + col] + 3 * rank - base;
                         for row in 0..3 {
                             values[at + row] += wi * wj * c.matrix[(row, col)];
                         }
