@@ -314,55 +314,32 @@ impl SparseCholesky {
         if self.column_scratch.0 < columns {
             self.column_scratch = (columns, MemBuffer::new(self.symbolic.solve_in_place_scratch::<Real>(columns, par)));
         }
-        let scratch = MemStack::new(&mut self.column_scratch.1);
-        Self::solve_permuted(
-            &self.symbolic,
-            &self.factor_values,
-            &self.perm,
-            &mut self.permuted_rhs,
-            rhs,
-            par,
-            scratch,
-        );
+        self.solve_permuted(rhs, par, true);
     }
 
     fn solve_with(&mut self, rhs: &mut [Real], par: Par) {
         assert!(self.factored, "SparseCholesky::solve before a successful factorize");
-        let scratch = MemStack::new(&mut self.scratch);
-        Self::solve_permuted(
-            &self.symbolic,
-            &self.factor_values,
-            &self.perm,
-            &mut self.permuted_rhs,
-            rhs,
-            par,
-            scratch,
-        );
+        self.solve_permuted(rhs, par, false);
     }
 
     /// `rhs ← A⁻¹ rhs` for the columns of `rhs`: each permuted into `P rhs`, solved with the
-    /// factor of `P A Pᵀ`, and permuted back (what faer does with an order of its own).
-    fn solve_permuted(
-        symbolic: &SymbolicCholesky<usize>,
-        factor_values: &[Real],
-        perm: &[usize],
-        permuted: &mut Vec<Real>,
-        rhs: &mut [Real],
-        par: Par,
-        scratch: &mut MemStack,
-    ) {
+    /// factor of `P A Pᵀ`, and permuted back (what faer does with an order of its own), in the
+    /// multi-column workspace or the single-column one.
+    fn solve_permuted(&mut self, rhs: &mut [Real], par: Par, in_column_scratch: bool) {
+        let perm = &self.perm;
         let n = perm.len();
         let columns = rhs.len() / n.max(1);
-        if permuted.len() < rhs.len() {
-            permuted.resize(rhs.len(), 0.0);
+        if self.permuted_rhs.len() < rhs.len() {
+            self.permuted_rhs.resize(rhs.len(), 0.0);
         }
-        let permuted = &mut permuted[..rhs.len()];
+        let permuted = &mut self.permuted_rhs[..rhs.len()];
         for (to, from) in permuted.chunks_mut(n).zip(rhs.chunks(n)) {
             for (x, &old) in to.iter_mut().zip(perm) {
                 *x = from[old];
             }
         }
-        let llt = LltRef::<'_, usize, Real>::new(symbolic, factor_values);
+        let scratch = MemStack::new(if in_column_scratch { &mut self.column_scratch.1 } else { &mut self.scratch });
+        let llt = LltRef::<'_, usize, Real>::new(&self.symbolic, &self.factor_values);
         llt.solve_in_place_with_conj(Conj::No, MatMut::from_column_major_slice_mut(permuted, n, columns), par, scratch);
         for (from, to) in permuted.chunks(n).zip(rhs.chunks_mut(n)) {
             for (&x, &old) in from.iter().zip(perm) {

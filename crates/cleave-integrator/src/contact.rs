@@ -184,6 +184,9 @@ pub(crate) struct ContactSet {
     /// Bound the search by the mean velocities alone (ω = 0 for every piece): the bounds before
     /// the rigid fit, which find the same pairs (a test compares the two).
     ignore_turning: bool,
+    /// Search every other piece from every point and edge (no pair filter): what the filter
+    /// keeps, it must find the same pairs with (a test compares the two).
+    search_every_piece: bool,
     /// Per surface component: its triangles, and those on a cut (indices into the surface's
     /// triangles), with a bounding volume hierarchy over each list (built at the first step of
     /// an epoch, refit every step).
@@ -683,6 +686,12 @@ impl ContactSet {
         })
     }
 
+    /// The other pieces this step's points and feature edges of `piece` search.
+    fn candidate_pieces(&self, piece: usize) -> impl Iterator<Item = usize> + '_ {
+        let range = self.piece_candidate_offsets[piece]..self.piece_candidate_offsets[piece + 1];
+        self.piece_candidates[range].iter().map(|&b| b as usize)
+    }
+
     /// The surface's edges, their faces, each triangle's edges and the feature edges.
     fn find_edges(&mut self, triangles: &[[u32; 3]]) {
         // Every side of every triangle as (lower point, higher point, triangle, side), sorted:
@@ -1067,7 +1076,8 @@ impl ContactSet {
             let own_speed = h * (self.motion.velocity[a].norm() + self.motion.spread[a]) * (1.0 + 1e-6);
             for (b, root_b) in self.roots_all.iter().enumerate() {
                 let bound = self.loose_reach[b] + own_speed + 1e-12 * surface.reach;
-                if b != a && squared_distance_between_boxes(root_a, root_b) < bound * bound {
+                if b != a && (self.search_every_piece || squared_distance_between_boxes(root_a, root_b) < bound * bound)
+                {
                     self.piece_candidates.push(b as u32);
                 }
             }
@@ -1179,9 +1189,7 @@ impl ContactSet {
                 };
                 let q_parry = to_parry(&q);
                 let speed = h * u.norm();
-                let candidates =
-                    &this.piece_candidates[this.piece_candidate_offsets[own]..this.piece_candidate_offsets[own + 1]];
-                for b in candidates.iter().map(|&b| b as usize) {
+                for b in this.candidate_pieces(own) {
                     // Most pieces are far from most points: a bound on the radius below that
                     // needs no square root (|u − w_b| ≤ |u| + |w_b|) rules them out first.
                     let root = &this.roots_all[b];
@@ -1368,9 +1376,7 @@ impl ContactSet {
             // The closest active pair.
             let mut best: Option<(Real, Contact)> = None;
             let which = (ContactKind::Edge, (first_slot + k) as u32, this.lagged[first_slot + k]);
-            let candidates =
-                &this.piece_candidates[this.piece_candidate_offsets[own]..this.piece_candidate_offsets[own + 1]];
-            for b in candidates.iter().map(|&b| b as usize) {
+            for b in this.candidate_pieces(own) {
                 // A pair is taken from its lower-numbered edge, and a piece's list is in
                 // increasing order: a piece whose edges all come before this one has none.
                 let (bvh, list) = (&this.bvh_edges[b], &this.component_feature_edges[b]);
@@ -1942,6 +1948,20 @@ mod tests {
         (corners, triangles)
     }
 
+    /// The corners of a regular tetrahedron of half-size `half` turned by `turn` about `centre`
+    /// (points 8–11 after a slab's 8; [`TETRAHEDRON_TRIANGLES`] its outward faces).
+    fn tetrahedron(turn: nalgebra::Rotation3<Real>, centre: Vector3<Real>, half: Real) -> [Vector3<Real>; 4] {
+        [[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]]
+            .map(|c| turn * Vector3::from(c) * half + centre)
+    }
+    /// The outward faces of [`tetrahedron`]'s corners as points 8–11.
+    const TETRAHEDRON_TRIANGLES: [[u32; 3]; 4] = [[8, 9, 10], [8, 11, 9], [8, 10, 11], [9, 11, 10]];
+
+    /// The DOFs of a slab's corners followed by a tetrahedron's.
+    fn slab_then_tetrahedron_dofs(slab: &[[Real; 3]], corners: &[Vector3<Real>; 4]) -> Vec<Real> {
+        slab.iter().flatten().copied().chain(corners.iter().flat_map(|c| [c.x, c.y, c.z])).collect()
+    }
+
     /// A reproducible sequence of numbers in [0, 1) (a 64-bit linear congruential generator).
     fn uniform(seed: u64) -> impl FnMut() -> Real {
         let mut state = seed;
@@ -1991,17 +2011,20 @@ mod tests {
     }
 
     /// The pairs (contacts and near pairs) that detection finds at `x`, `v`, with the search
-    /// bounded by the pieces' rigid motions and by their mean velocities alone, asserted equal
-    /// bit for bit; returns how many.
+    /// bounded by the pieces' rigid motions, by their mean velocities alone, and with every
+    /// other piece searched (no filter of the pairs of pieces), asserted equal bit for bit;
+    /// returns how many.
     fn pairs_found_alike(constraints: &Constraints, rest: &[Real], x: &[Real], v: &[Real], h: Real) -> usize {
-        let found = |ignore_turning: bool| {
+        let found = |ignore_turning: bool, search_every_piece: bool| {
             let mut set = ContactSet::new(constraints, rest);
             set.ignore_turning = ignore_turning;
+            set.search_every_piece = search_every_piece;
             set.detect(constraints, x, v, h, &Vector3::zeros());
             pairs_bit_for_bit(&set)
         };
-        let (turning, mean) = (found(false), found(true));
-        assert_eq!(turning, mean, "x = {x:?}, v = {v:?}");
+        let turning = found(false, false);
+        assert_eq!(turning, found(true, false), "mean velocities: x = {x:?}, v = {v:?}");
+        assert_eq!(turning, found(false, true), "every piece: x = {x:?}, v = {v:?}");
         turning.0.len() + turning.1.len()
     }
 
@@ -2105,12 +2128,11 @@ mod tests {
         let mut random = uniform(0xbb67_ae85_84ca_a73b);
         let mut spin = || Vector3::new(random() - 0.5, random() - 0.5, random() - 0.5);
         let mut triangles = slab_triangles.clone();
-        triangles.extend([[8, 9, 10], [8, 11, 9], [8, 10, 11], [9, 11, 10]]);
+        triangles.extend(TETRAHEDRON_TRIANGLES);
         let (mut centre, mut drift) = (Vector3::new(0.5 * size, 0.5 * size, thick + reach), Vector3::zeros());
         let mut turn = nalgebra::Rotation3::identity();
         let x_of = |centre: Vector3<Real>, turn: nalgebra::Rotation3<Real>, drift: Vector3<Real>| -> Vec<Real> {
-            let corners = [[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]]
-                .map(|c| turn * Vector3::from(c) * 0.003 + centre);
+            let corners = tetrahedron(turn, centre, 0.003);
             let slab = slab.iter().map(|p| Vector3::from(*p) + drift);
             slab.chain(corners).flat_map(|c| [c.x, c.y, c.z]).collect()
         };
@@ -2154,10 +2176,8 @@ mod tests {
             let offset = spin();
             let centre =
                 Vector3::new(size * (1.0 + 0.3 * offset.x), size * (0.5 + offset.y), thick * (0.5 + 3.0 * offset.z));
-            let corners = [[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]]
-                .map(|c| turn * Vector3::from(c) * 0.004 + centre);
-            let x: Vec<Real> =
-                slab.iter().flatten().copied().chain(corners.iter().flat_map(|c| [c.x, c.y, c.z])).collect();
+            let corners = tetrahedron(turn, centre, 0.004);
+            let x = slab_then_tetrahedron_dofs(&slab, &corners);
             // Each piece: a mean velocity, a turn of up to 25 rad/s about its centre, and a
             // deformation of up to 5 cm/s per point.
             let mut v = vec![0.0; x.len()];
@@ -2174,7 +2194,7 @@ mod tests {
                 }
             }
             let mut triangles = slab_triangles.clone();
-            triangles.extend([[8, 9, 10], [8, 11, 9], [8, 10, 11], [9, 11, 10]]);
+            triangles.extend(TETRAHEDRON_TRIANGLES);
             let (mut constraints, rest) = slab_and_tetrahedron(triangles, &x);
             if let Some(surface) = constraints.surface_contact.as_mut() {
                 surface.on_cut = (0..16).map(|t| t < 12).collect();
@@ -2183,6 +2203,47 @@ mod tests {
         }
         println!("{pairs} pairs found alike");
         assert!(pairs > 1000, "too few pairs ({pairs}) for the comparison to mean anything");
+    }
+
+    /// A small tetrahedron above a 5 cm slab, farther from it than the reach (1–4 cm against
+    /// 1 cm) but closing fast (up to 3 m/s, h = 0.01 s, turning), the slab moving too: the pairs
+    /// of pieces ruled in once per step (their root boxes against the loosest radius of any
+    /// point) keep every pair that searching every other piece from every point finds, in 3000
+    /// random states. A filter that left out the searching piece's own motion lost pairs here.
+    #[test]
+    fn the_pair_filter_keeps_every_pair_searching_every_piece_finds() {
+        let (size, thick) = (0.05, 0.004);
+        let (slab, slab_triangles) = slab(size, thick);
+        let mut random = uniform(0x9e37_79b9_7f4a_7c15);
+        let mut spin = || Vector3::new(random() - 0.5, random() - 0.5, random() - 0.5);
+        let (mut pairs, h) = (0, 0.01);
+        for _ in 0..3000 {
+            let turn = nalgebra::Rotation3::new(spin() * 6.0);
+            let offset = spin();
+            let centre = Vector3::new(
+                size * (0.5 + 0.6 * offset.x),
+                size * (0.5 + 0.6 * offset.y),
+                thick + 0.025 + 0.06 * offset.z,
+            );
+            let corners = tetrahedron(turn, centre, 0.004);
+            let x = slab_then_tetrahedron_dofs(&slab, &corners);
+            let mut v = vec![0.0; x.len()];
+            let slab_velocity = spin() * 2.0;
+            for k in 0..8 {
+                v[3 * k..3 * k + 3].copy_from_slice(slab_velocity.as_slice());
+            }
+            let (closing, omega) = (Vector3::new(0.0, 0.0, -3.0 * (spin().z + 0.5)) + spin(), spin() * 20.0);
+            for (k, corner) in corners.iter().enumerate() {
+                let u = closing + omega.cross(&(corner - centre));
+                v[24 + 3 * k..27 + 3 * k].copy_from_slice(u.as_slice());
+            }
+            let mut triangles = slab_triangles.clone();
+            triangles.extend(TETRAHEDRON_TRIANGLES);
+            let (constraints, rest) = slab_and_tetrahedron(triangles, &x);
+            pairs += pairs_found_alike(&constraints, &rest, &x, &v, h);
+        }
+        println!("{pairs} pairs found alike");
+        assert!(pairs > 500, "too few pairs ({pairs}) for the comparison to mean anything");
     }
 
     /// Surface points of a small tetrahedron tossed around the rim of a thin slab (4 mm, thinner
@@ -2207,12 +2268,10 @@ mod tests {
             let axis = Vector3::new(random() - 0.5, random() - 0.5, random() - 0.5);
             let turn = nalgebra::Rotation3::new(axis * 6.0);
             let centre = Vector3::new(size + 0.012 * (random() - 0.5), 0.5, thick * (3.0 * random() - 1.0));
-            let corners = [[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]]
-                .map(|c| turn * Vector3::from(c) * 0.002 + centre);
-            let x: Vec<Real> =
-                slab.iter().flatten().copied().chain(corners.iter().flat_map(|c| [c.x, c.y, c.z])).collect();
+            let corners = tetrahedron(turn, centre, 0.002);
+            let x = slab_then_tetrahedron_dofs(&slab, &corners);
             let mut triangles = slab_triangles.clone();
-            triangles.extend([[8, 9, 10], [8, 11, 9], [8, 10, 11], [9, 11, 10]]);
+            triangles.extend(TETRAHEDRON_TRIANGLES);
             let (constraints, rest) = slab_and_tetrahedron(triangles, &x);
             let mut set = ContactSet::new(&constraints, &rest);
             set.detect(&constraints, &x, &vec![0.0; x.len()], 0.01, &Vector3::zeros());
