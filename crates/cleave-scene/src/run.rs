@@ -625,8 +625,9 @@ impl Simulation {
     /// The surfaces the timeline cuts at the start of the step from `t0` to `t1`: a `Cut` once,
     /// at the first step that starts at or after its time (a plane stays a plane: the backend
     /// cuts it exactly, without the slivers a huge two-triangle stand-in leaves along its
-    /// diagonal); the blades' soups swept over their part of this step, as one soup (from the
-    /// second step of a blade on, only what it newly covers: [`Blade::swept_after`]).
+    /// diagonal); the blades' soups swept over their part of this step, as one soup (the first
+    /// step of a blade with its incision, [`Blade::swept`]; later ones only what its cutting
+    /// edges sweep, [`Blade::swept_after`]).
     /// A `Cut` comes with its index in the timeline.
     fn due_cuts(&mut self, t0: Real, t1: Real) -> Vec<(Option<usize>, CutSurface)> {
         let mut due = Vec::new();
@@ -974,7 +975,7 @@ fn prepare_timeline(events: &[EventSpec], scene: &Path) -> Result<Vec<TimedCut>,
                 };
                 TimedCut::Once { time: *time, surface: Some(surface) }
             }
-            EventSpec::Blade { start, end, polygon, path } => {
+            EventSpec::Blade { start, end, polygon, path, cutting_edges } => {
                 if !(start.is_finite() && end.is_finite() && start <= end) {
                     return Err(build_error(format!("timeline[{index}]: blade window {start}..{end} is empty")));
                 }
@@ -990,8 +991,11 @@ fn prepare_timeline(events: &[EventSpec], scene: &Path) -> Result<Vec<TimedCut>,
                     })
                     .collect();
                 let polygon = polygon.iter().map(|p| Point3::from(*p)).collect();
-                let blade =
-                    Blade::new(polygon, keyframes).map_err(|e| build_error(format!("timeline[{index}]: {e}")))?;
+                let mut blade = Blade::new(polygon, keyframes);
+                if let Some(edges) = cutting_edges {
+                    blade = blade.and_then(|b| b.with_cutting_edges(edges.clone()));
+                }
+                let blade = blade.map_err(|e| build_error(format!("timeline[{index}]: {e}")))?;
                 TimedCut::Blade { start: *start, end: *end, blade, begun: false }
             }
         });

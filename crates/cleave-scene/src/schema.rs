@@ -297,8 +297,9 @@ pub enum EventSpec {
         /// the cut surface
         surface: CutSpec,
     },
-    /// A blade: a planar polygon moved along a keyframed rigid path, cutting what it passes
-    /// through progressively between `start` and `end`.
+    /// A blade: a planar polygon moved along a keyframed rigid path, cutting progressively
+    /// between `start` and `end`: its polygon where it stands at `start` (an incision), then
+    /// the surface its cutting edges sweep.
     Blade {
         /// first time it cuts [s]
         start: Real,
@@ -308,6 +309,10 @@ pub enum EventSpec {
         polygon: Vec<[Real; 3]>,
         /// poses of its frame, times strictly increasing
         path: Vec<KeyframeSpec>,
+        /// the edges that cut (edge `i` joins points `i` and `i + 1`); default: the edges that
+        /// lead the motion within the polygon's plane
+        #[serde(default)]
+        cutting_edges: Option<Vec<usize>>,
     },
 }
 
