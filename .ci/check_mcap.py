@@ -7,6 +7,20 @@ With --expect-cut, /events must hold `cut` events, the last frame must have at l
 --min-pieces pieces, each piece's surface (its original and cut triangle lists, welded by
 position) must be closed with every edge in exactly two triangles, and the run must end at rest
 on the ground.
+
+Optional checks, each independent of the above (they run first, so that their results show even
+when a later check fails; each prints its own line and the run fails if any of them fails):
+--max-pieces N: the last /surface frame must have at most N pieces (grouped as in --expect-cut).
+--strict-closed: in the last frame, every piece's surface must be a closed manifold without
+degenerate triangles as a reader of the f32 recording sees it: a piece's vertices are welded only
+where their recorded coordinates are exactly equal (no tolerance), triangles whose welded corners
+repeat or whose area is below 1e-14 m² count as zero-area triangles, and every undirected edge of
+the remaining triangles must be in exactly two of them. The last frame is after all cuts, so an
+edge in four triangles (two coinciding sheets of a cut that ends inside the material) is bad too.
+Both counts are printed per failing piece and in total, and both must be 0.
+--energy-after-last-cut PCT: E0 is /stats energy.total at the first step at or after the time of
+the last /events `cut` event; at no later step may the total energy exceed E0 + PCT/100 * |E0|.
+At the end, one line sums up what was checked.
 """
 import json
 import sys
@@ -19,9 +33,14 @@ def main() -> int:
     expect_rest = "--expect-rest" in sys.argv
     expect_cut = "--expect-cut" in sys.argv
     min_pieces = int(sys.argv[sys.argv.index("--min-pieces") + 1]) if "--min-pieces" in sys.argv else 2
+    max_pieces = int(sys.argv[sys.argv.index("--max-pieces") + 1]) if "--max-pieces" in sys.argv else None
+    strict_closed = "--strict-closed" in sys.argv
+    energy_pct = (float(sys.argv[sys.argv.index("--energy-after-last-cut") + 1])
+                  if "--energy-after-last-cut" in sys.argv else None)
     counts = {}
     stats = []
     cuts = 0
+    cut_times = []
     last_surface = None
     surfaces = []  # (time, frame) of the surface frames sampled for the closedness check
     with open(path, "rb") as f:
@@ -41,26 +60,55 @@ def main() -> int:
                 stats.append(data)
             elif channel.topic == "/events" and data["kind"] == "cut":
                 cuts += 1
+                cut_times.append(data["time"])
     print(f"{path}: {counts}")
     for topic in ("/surface", "/stats", "/events"):
         assert counts.get(topic, 0) > 0, f"no messages on {topic}"
-    if expect_rest:
-        start_z = stats[0]["surface"]["min_z"]
-        lowest = min(s["surface"]["min_z"] for s in stats)
-        final = stats[-1]
-        print(f"min z: start {start_z:.4f} m, lowest {lowest:.4f} m, final {final['surface']['min_z']:.4f} m; "
-              f"final kinetic energy {final['energy']['kinetic']:.3e} J")
-        assert start_z > 0.2, "the bunny should start above the ground"
-        assert abs(lowest) < 0.02, "the bunny should reach the ground"
-        assert final["energy"]["kinetic"] < 1e-3, "the bunny should come to rest"
-    if expect_cut:
-        check_cut(last_surface, surfaces, cuts, stats, min_pieces)
-    return 0
+    checked = ["JSON messages and topics"]
+    failed = []
+    if max_pieces is not None:
+        name = f"--max-pieces {max_pieces}"
+        checked.append(name)
+        if not check_max_pieces(last_surface, max_pieces):
+            failed.append(name)
+    if strict_closed:
+        name = "--strict-closed (last frame: exact weld, no zero-area triangles, every edge in two)"
+        checked.append(name)
+        if not check_strict_closed(last_surface):
+            failed.append(name)
+    if energy_pct is not None:
+        name = f"--energy-after-last-cut {energy_pct:g} %"
+        checked.append(name)
+        if not check_energy_after_last_cut(stats, cut_times, energy_pct):
+            failed.append(name)
+    current = None  # the check under way, when one of the asserting checks below fails
+    try:
+        if expect_rest:
+            current = "--expect-rest (falls, reaches the ground, rests)"
+            checked.append(current)
+            start_z = stats[0]["surface"]["min_z"]
+            lowest = min(s["surface"]["min_z"] for s in stats)
+            final = stats[-1]
+            print(f"min z: start {start_z:.4f} m, lowest {lowest:.4f} m, final {final['surface']['min_z']:.4f} m; "
+                  f"final kinetic energy {final['energy']['kinetic']:.3e} J")
+            assert start_z > 0.2, "the bunny should start above the ground"
+            assert abs(lowest) < 0.02, "the bunny should reach the ground"
+            assert final["energy"]["kinetic"] < 1e-3, "the bunny should come to rest"
+        if expect_cut:
+            current = f"--expect-cut (cut events, at least {min_pieces} pieces, closed, separated, at rest)"
+            checked.append(current)
+            check_cut(last_surface, surfaces, cuts, stats, min_pieces)
+        current = None
+    finally:
+        if current is not None:
+            failed.append(current)
+        print(f"checked: {'; '.join(checked)}: " + (f"FAILED: {'; '.join(failed)}" if failed else "all passed"))
+    return 1 if failed else 0
 
 
-def closed_pieces(surface, odd_only=False):
-    """Groups the triangle lists into pieces (lists come in piece order, original before cut,
-    colour tells the kind) and returns, per piece, (triangles, edges not in exactly two)."""
+def piece_lists(surface):
+    """Groups the triangle lists into pieces: lists come in piece order, original before cut,
+    colour tells the kind. Returns one dict per piece with its "lists"."""
     pieces = []
     current = None
     for lst in surface["entities"][0]["triangles"]:
@@ -70,6 +118,13 @@ def closed_pieces(surface, odd_only=False):
             pieces.append(current)
         current["lists"].append(lst)
         current["has_cut"] = current["has_cut"] or is_cut
+    return pieces
+
+
+def closed_pieces(surface, odd_only=False):
+    """Groups the triangle lists into pieces (as piece_lists) and returns, per piece, (triangles,
+    edges not in exactly two)."""
+    pieces = piece_lists(surface)
     result = []
     tolerance = 1e-7  # metres: above f32 rounding of the recorded points (1.5e-8 at 0.2 m), far below an element
     for piece in pieces:
@@ -107,6 +162,91 @@ def closed_pieces(surface, odd_only=False):
         bad = sum(1 for n in edges.values() if (n % 2 == 1 if odd_only else n != 2))
         result.append((triangles, bad))
     return result
+
+
+def check_max_pieces(surface, max_pieces):
+    """The last frame has at most max_pieces pieces (grouped as closed_pieces groups them)."""
+    n = len(piece_lists(surface))
+    ok = n <= max_pieces
+    print(f"max pieces: last frame has {n} pieces, at most {max_pieces} allowed: {'ok' if ok else 'FAILED'}")
+    return ok
+
+
+def strict_closed_counts(piece, min_area=1e-14):
+    """For one piece (from piece_lists): (triangles, zero-area triangles, bad edges, {triangles
+    per bad edge: edges}). Vertices are welded only where their recorded coordinates are exactly
+    equal; a triangle is zero-area when its welded corners repeat or its area is below min_area
+    (m²); bad edges are the undirected edges of the other triangles not in exactly two of them."""
+    import numpy as np
+    points, triangles, offset = [], [], 0
+    for lst in piece["lists"]:
+        points.append(np.array([[p["x"], p["y"], p["z"]] for p in lst["points"]], dtype=np.float64).reshape(-1, 3))
+        triangles.append(np.array(lst["indices"], dtype=np.int64).reshape(-1, 3) + offset)
+        offset += len(lst["points"])
+    points = np.concatenate(points)
+    triangles = np.concatenate(triangles)
+    if len(triangles) == 0:
+        return 0, 0, 0, {}
+    _, weld = np.unique(points, axis=0, return_inverse=True)
+    t = weld.reshape(-1)[triangles]
+    corners = points[triangles]
+    area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    repeated = (t[:, 0] == t[:, 1]) | (t[:, 1] == t[:, 2]) | (t[:, 2] == t[:, 0])
+    zero = repeated | (area < min_area)
+    kept = t[~zero]
+    edges = np.concatenate([kept[:, [0, 1]], kept[:, [1, 2]], kept[:, [2, 0]]])
+    edges.sort(axis=1)
+    _, uses = np.unique(edges, axis=0, return_counts=True)
+    bad_uses = uses[uses != 2]
+    histogram = {int(n): int(c) for n, c in zip(*np.unique(bad_uses, return_counts=True))}
+    return len(t), int(zero.sum()), int(len(bad_uses)), histogram
+
+
+def check_strict_closed(surface):
+    """Every piece of the last frame is a closed manifold without degenerate triangles as a reader
+    of the f32 recording sees it (see strict_closed_counts). After all cuts, so an edge in four
+    triangles (two coinciding sheets of an unfinished cut) is bad too."""
+    pieces = piece_lists(surface)
+    total_zero = total_bad = 0
+    for k, piece in enumerate(pieces):
+        triangles, zero, bad, histogram = strict_closed_counts(piece)
+        total_zero += zero
+        total_bad += bad
+        if zero or bad:
+            uses = ", ".join(f"{c} in {n}" for n, c in sorted(histogram.items()))
+            print(f"strict closed: piece {k} ({triangles} triangles): {zero} zero-area triangles, "
+                  f"{bad} edges not in exactly two triangles" + (f" ({uses})" if uses else ""))
+    ok = total_zero == 0 and total_bad == 0
+    print(f"strict closed: last frame, {len(pieces)} pieces: {total_zero} zero-area triangles, "
+          f"{total_bad} edges not in exactly two triangles in total: {'ok' if ok else 'FAILED'}")
+    return ok
+
+
+def check_energy_after_last_cut(stats, cut_times, pct):
+    """E0 = total energy at the first step at or after the last cut; no later step may exceed
+    E0 + pct/100 * |E0|."""
+    if not cut_times:
+        print("energy after last cut: no cut events: FAILED")
+        return False
+    t_cut = max(cut_times)
+    # "At or after", with a nanosecond of slack for times accumulated differently.
+    after = [s for s in stats if s["time"] >= t_cut - 1e-9]
+    if not after:
+        print(f"energy after last cut: no /stats step at or after the last cut (t = {t_cut:.4f} s): FAILED")
+        return False
+    e0, t0 = after[0]["energy"]["total"], after[0]["time"]
+    limit = e0 + pct / 100 * abs(e0)
+    later = after[1:]
+    if not later:
+        print(f"energy after last cut (t = {t_cut:.4f} s): E0 = {e0:.6f} J at t = {t0:.4f} s, no later step: ok")
+        return True
+    peak = max(later, key=lambda s: s["energy"]["total"])
+    e_peak, t_peak = peak["energy"]["total"], peak["time"]
+    rise = 100 * (e_peak - e0) / abs(e0) if e0 != 0 else float("inf") if e_peak > e0 else 0.0
+    ok = e_peak <= limit
+    print(f"energy after last cut (t = {t_cut:.4f} s): E0 = {e0:.6f} J at t = {t0:.4f} s, peak after it "
+          f"{e_peak:.6f} J at t = {t_peak:.4f} s ({rise:+.3f} %, at most +{pct:g} % allowed): {'ok' if ok else 'FAILED'}")
+    return ok
 
 
 def piece_meshes(surface):

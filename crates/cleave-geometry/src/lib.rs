@@ -37,6 +37,8 @@ mod obj;
 mod overlap;
 mod poly_validate;
 mod polyhedral;
+mod slivers;
+mod union_find;
 mod validate;
 mod voxelize;
 
@@ -58,5 +60,7 @@ pub use moments::{
 pub use overlap::triangle_aabb_overlap;
 pub use poly_validate::PolyMeshStats;
 pub use polyhedral::{ElementFace, PolyFace, PolyhedralMesh};
+pub use slivers::{SliverRepair, repair_slivers};
+pub use union_find::UnionFind;
 pub use validate::{DEGENERATE_RATIO, MeshStats};
 pub use voxelize::{CELL_TOLERANCE, MAX_GRID_CELLS, VoxelGrid, voxelize};

@@ -13,7 +13,7 @@ use cleave_core::{
     BlockSet, BlockSetBuilder, CutSurface, Cuttable, Discretization, DofRemap, EmbedError, Embedding, FieldSample,
     FrameRemap, Mass, Material, Matrix3, Point3, Real, RotationStats, TopologyChange, TopologyError, Vector3,
 };
-use cleave_geometry::{InsideTester, TriangleMesh};
+use cleave_geometry::{InsideTester, TriangleMesh, UnionFind};
 use nalgebra::{DMatrix, Point2};
 use rayon::prelude::*;
 
@@ -1192,30 +1192,4 @@ pub fn box_surface(lo: Point3<Real>, hi: Point3<Real>) -> TriangleMesh {
     let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
     let triangles = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
     TriangleMesh::new(v, triangles)
-}
-
-/// Union–find with path halving.
-struct UnionFind {
-    parent: Vec<usize>,
-}
-
-impl UnionFind {
-    fn new(n: usize) -> Self {
-        Self { parent: (0..n).collect() }
-    }
-
-    fn find(&mut self, mut i: usize) -> usize {
-        while self.parent[i] != i {
-            self.parent[i] = self.parent[self.parent[i]];
-            i = self.parent[i];
-        }
-        i
-    }
-
-    fn union(&mut self, a: usize, b: usize) {
-        let (ra, rb) = (self.find(a), self.find(b));
-        if ra != rb {
-            self.parent[ra.max(rb)] = ra.min(rb);
-        }
-    }
 }

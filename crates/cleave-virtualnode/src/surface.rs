@@ -46,6 +46,89 @@ pub struct RenderSurface {
 /// edge.
 pub const T_JUNCTION_TOLERANCE: Real = 1e-10;
 
+/// Relative tolerance (of the lattice spacing) below which an edge of a piece's surface is
+/// collapsed and a corner nearer its opposite edge is flipped away ([`remove_slivers`]):
+/// 1.5e-7 m at 15 mm cells, ten times what an f32 recording of a 0.2 m body resolves.
+pub const SLIVER_TOLERANCE: Real = 1e-5;
+
+/// Relative tolerance (of the lattice spacing) within which an open edge of a piece's surface is
+/// split at the corners of other open edges after the render ([`remove_slivers`]): the cut
+/// faces and the clipped object surface are two computations of the curve where they meet,
+/// and near-coplanar source triangles put them up to ~1e-6 m apart at 15 mm cells.
+pub const JUNCTION_TOLERANCE: Real = 1e-3;
+
+/// Weights at or below this do not make a node one of a vertex's own when deciding whether two
+/// vertices nearer than the sliver tolerance may be merged (a point computed in two
+/// tetrahedra lands up to ~1e-7 outside the face they share).
+const SLIVER_WEIGHT: Real = 1e-6;
+
+/// Repairs the slivers of one piece's surface (`cleave_geometry::repair_slivers`): two near
+/// vertices are merged only when their nodes of weight above [`SLIVER_WEIGHT`] are the same,
+/// the two ends of a short edge when those nodes fit in one tetrahedron (never the two sides
+/// of a crack, whose nodes are different copies); the vertices merged away are dropped with
+/// their embedding rows.
+fn remove_slivers(surface: &mut RenderSurface, tolerance: Real) {
+    let own_nodes = |v: u32| {
+        let (nodes, weights) = surface.embedding.row(v as usize);
+        let mut own = [u32::MAX; 4];
+        for (slot, (n, w)) in own.iter_mut().zip(nodes.iter().zip(weights)) {
+            if w.abs() > SLIVER_WEIGHT {
+                *slot = *n;
+            }
+        }
+        own.sort_unstable();
+        own
+    };
+    // Near vertices are one point when their own nodes agree; the two ends of a triangle's
+    // edge lie in one duplicate's polygon, on one side of any crack, so their own nodes need
+    // only fit in one tetrahedron.
+    let same_point = |u: u32, v: u32, joined: bool| {
+        let (a, b) = (own_nodes(u), own_nodes(v));
+        if !joined {
+            return a == b;
+        }
+        let mut union: Vec<u32> = a.iter().chain(&b).copied().filter(|&n| n != u32::MAX).collect();
+        union.sort_unstable();
+        union.dedup();
+        union.len() <= 4
+    };
+    let mut tags: Vec<(SurfaceKind, u32)> =
+        surface.kinds.iter().copied().zip(surface.duplicates.iter().copied()).collect();
+    let repair = cleave_geometry::repair_slivers(
+        &surface.positions,
+        &mut surface.triangles,
+        &mut tags,
+        tolerance,
+        JUNCTION_TOLERANCE / SLIVER_TOLERANCE * tolerance,
+        same_point,
+    );
+    if repair == cleave_geometry::SliverRepair::default() {
+        return;
+    }
+    (surface.kinds, surface.duplicates) = tags.into_iter().unzip();
+    if repair.collapsed > 0 {
+        let mut new_index = vec![u32::MAX; surface.positions.len()];
+        for t in &surface.triangles {
+            for &v in t {
+                new_index[v as usize] = 0;
+            }
+        }
+        let (mut positions, mut embedding) = (Vec::with_capacity(surface.positions.len()), Embedding::new());
+        for (v, slot) in new_index.iter_mut().enumerate() {
+            if *slot == 0 {
+                *slot = positions.len() as u32;
+                positions.push(surface.positions[v]);
+                let (nodes, weights) = surface.embedding.row(v);
+                embedding.push_row(nodes, weights);
+            }
+        }
+        for t in &mut surface.triangles {
+            *t = t.map(|v| new_index[v as usize]);
+        }
+        (surface.positions, surface.embedding) = (positions, embedding);
+    }
+}
+
 /// A point of a polygon's loop: rest position, barycentric weights, and for a whole source
 /// triangle the lattice tetrahedron whose (only) duplicate embeds it. Node numbers are not
 /// kept: a cut renumbers them, and the welder reads them from the duplicate at each render.
@@ -725,6 +808,7 @@ impl VirtualNodeMesh {
                         }
                     }
                 }
+                remove_slivers(&mut surface, SLIVER_TOLERANCE * h);
                 surface
             })
             .collect();
