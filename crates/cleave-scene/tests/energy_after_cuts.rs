@@ -40,7 +40,14 @@ fn run(events: &str) -> (usize, f64, f64, u64) {
         if std::env::var("ENERGY_TRACE").is_ok() {
             println!(
                 "step {} kinetic {:.5} elastic {:.5} gravity {:.5} penalty {:.5} total {:.5} deepest {:.2e} {:?}",
-                report.step, report.kinetic_energy, report.elastic_energy, report.gravitational_energy, report.penalty_energy, report.total_energy(), report.contacts.max_penetration, (report.contacts.planes, report.contacts.surface, report.contacts.edges)
+                report.step,
+                report.kinetic_energy,
+                report.elastic_energy,
+                report.gravitational_energy,
+                report.penalty_energy,
+                report.total_energy(),
+                report.contacts.max_penetration,
+                (report.contacts.planes, report.contacts.surface, report.contacts.edges)
             );
         }
         // The cuts are due at the first step; energy is measured from the second on.
@@ -59,7 +66,10 @@ fn run(events: &str) -> (usize, f64, f64, u64) {
 fn check(name: &str, events: &str, min_pieces: usize) {
     let (pieces, start, peak, step) = run(events);
     let rise = (peak - start) / start.abs();
-    println!("{name}: {pieces} pieces, energy after the cuts {start:.6} J, peak {peak:.6} J at step {step} ({:+.3} %)", 100.0 * rise);
+    println!(
+        "{name}: {pieces} pieces, energy after the cuts {start:.6} J, peak {peak:.6} J at step {step} ({:+.3} %)",
+        100.0 * rise
+    );
     assert!(pieces >= min_pieces, "{name}: {pieces} pieces");
     assert!(rise <= 0.01, "{name}: energy rose by {:.2} % after the cuts", 100.0 * rise);
 }
@@ -68,7 +78,12 @@ fn check(name: &str, events: &str, min_pieces: usize) {
 fn a_stack_of_slices_one_percent_of_a_cell_thick_gains_no_energy() {
     // Six horizontal planes 0.5 mm apart (1 % of the cell) through the middle of the block.
     let events: String = (0..6)
-        .map(|k| format!("Cut(time: 0.0, surface: Plane(point: (0.0, 0.0, {}), normal: (0.0, 0.0, 1.0))),", 0.0473 + 0.0005 * k as f64))
+        .map(|k| {
+            format!(
+                "Cut(time: 0.0, surface: Plane(point: (0.0, 0.0, {}), normal: (0.0, 0.0, 1.0))),",
+                0.0473 + 0.0005 * k as f64
+            )
+        })
         .collect();
     check("thin stack", &events, 7);
 }
