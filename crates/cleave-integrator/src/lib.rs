@@ -18,6 +18,7 @@ pub use constraints::{Constraints, MeshCollider, MeshColliderError, PenaltyPins,
 pub use contact::{ContactKind, ContactStats, FRICTION_SLIP_SPEED};
 pub use error::{StepError, StepErrorKind};
 pub use integrator::{
-    AUTO_COARSE_DOFS, Integrator, PhaseSeconds, Preconditioner, PreparedContact, Settings, Solver, StepReport,
+    AUTO_COARSE_DOFS, Integrator, PhaseSeconds, Preconditioner, PreparedContact, RECOMMENDED_ROTATION_REFRESH_ANGLE,
+    Settings, Solver, StepReport,
 };
 pub use statics::{StaticSolution, solve_static};

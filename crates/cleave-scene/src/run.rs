@@ -463,6 +463,7 @@ impl Simulation {
         settings.rayleigh_alpha = material.rayleigh_alpha;
         settings.rayleigh_beta = material.rayleigh_beta;
         settings.conserve_angular_momentum = scene.conserve_angular_momentum;
+        settings.rotation_refresh_angle = scene.rotation_refresh_angle.map(|a| a.0);
         settings.solver = match scene.solver {
             SolverSpec::Cholesky => Solver::Cholesky,
             SolverSpec::ConjugateGradient { tolerance, max_iterations, assembled } => {

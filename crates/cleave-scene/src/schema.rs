@@ -38,6 +38,10 @@ pub struct Scene {
     /// free piece (`Settings::conserve_angular_momentum`); default false.
     #[serde(default)]
     pub conserve_angular_momentum: bool,
+    /// Solve a step again with the rotations of its solution when some element turns by more
+    /// than this angle [rad] in it (`Settings::rotation_refresh_angle`); default: never.
+    #[serde(default)]
+    pub rotation_refresh_angle: Option<Positive>,
     /// Pinned regions.
     #[serde(default)]
     pub pins: Vec<PinSpec>,
