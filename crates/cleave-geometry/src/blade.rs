@@ -71,8 +71,9 @@ pub struct Blade {
 
 impl Blade {
     /// A blade from its polygon (blade frame; closed implicitly, planar by intent, of non-zero
-    /// area, convex where its incision matters: the incision is its fan) and its keyframes (times strictly increasing). Its cutting edges are the
-    /// ones leading the motion; [`Blade::with_cutting_edges`] names them instead.
+    /// area, convex where its incision matters: the incision is its fan) and its keyframes
+    /// (times strictly increasing). Its cutting edges are the ones leading the motion;
+    /// [`Blade::with_cutting_edges`] names them instead.
     pub fn new(polygon: Vec<Point3<f64>>, keyframes: Vec<Keyframe>) -> Result<Self, BladeError> {
         if polygon.len() < 3 {
             return Err(BladeError::Polygon(polygon.len()));

@@ -52,9 +52,10 @@ fn sliver(positions: &[Point3<f64>], t: &[u32; 3], tolerance: f64) -> Option<Opt
 /// module doc): first every two vertices nearer than `tolerance` are merged into the
 /// lower-numbered one, every open edge with vertices of other open edges within
 /// `junction_tolerance` of it is split at them (a T-junction the maker missed; the surface is
-/// not moved, only joined where its maker's two computations of one curve disagree), every edge shorter than `tolerance` is
-/// collapsed (triangles left with a repeated corner are dropped, and so are pairs of triangles
-/// on the same corners with opposite orientations, which cancel), then every cap (corner `a`
+/// not moved, only joined where its maker's two computations of one curve disagree), every
+/// edge shorter than `tolerance` is collapsed (triangles left with a repeated corner are
+/// dropped, and so are pairs of triangles on the same corners with opposite orientations,
+/// which cancel), then every cap (corner `a`
 /// nearer than `tolerance` to the line of its opposite edge `bc`) is removed by flipping `bc`
 /// with the triangle `cbd` across it: `abc`, `cbd` become `abd`, `adc`, which take the tag of
 /// `cbd` (the cap had no area of its own). Vertices collapsed away are no longer used; the
@@ -63,8 +64,8 @@ fn sliver(positions: &[Point3<f64>], t: &[u32; 3], tolerance: f64) -> Option<Opt
 /// `same_point(u, v, joined)` says whether two vertices may be merged (the same material
 /// point: not the two sides of a crack at one position); `joined` says whether an edge of a
 /// triangle joins them (else they are only near). Short edges between vertices it refuses
-/// are left, and counted in [`SliverRepair::left`]. Deterministic: the result depends only on the
-/// input's order.
+/// are left, and counted in [`SliverRepair::left`]. Deterministic: the result depends only on
+/// the input's order.
 pub fn repair_slivers<T: Copy>(
     positions: &[Point3<f64>],
     triangles: &mut Vec<[u32; 3]>,

@@ -107,20 +107,16 @@ fn remove_slivers(surface: &mut RenderSurface, tolerance: Real) {
     }
     (surface.kinds, surface.duplicates) = tags.into_iter().unzip();
     if repair.collapsed > 0 {
-        let mut new_index = vec![u32::MAX; surface.positions.len()];
-        for t in &surface.triangles {
-            for &v in t {
-                new_index[v as usize] = 0;
-            }
-        }
-        let (mut positions, mut embedding) = (Vec::with_capacity(surface.positions.len()), Embedding::new());
-        for (v, slot) in new_index.iter_mut().enumerate() {
-            if *slot == 0 {
-                *slot = positions.len() as u32;
-                positions.push(surface.positions[v]);
-                let (nodes, weights) = surface.embedding.row(v);
-                embedding.push_row(nodes, weights);
-            }
+        // Vertices merged away are used by no triangle now: keep the used ones, in order.
+        let mut used = vec![false; surface.positions.len()];
+        surface.triangles.iter().flatten().for_each(|&v| used[v as usize] = true);
+        let mut new_index = vec![u32::MAX; used.len()];
+        let (mut positions, mut embedding) = (Vec::with_capacity(used.len()), Embedding::new());
+        for v in (0..used.len()).filter(|&v| used[v]) {
+            new_index[v] = positions.len() as u32;
+            positions.push(surface.positions[v]);
+            let (nodes, weights) = surface.embedding.row(v);
+            embedding.push_row(nodes, weights);
         }
         for t in &mut surface.triangles {
             *t = t.map(|v| new_index[v as usize]);
