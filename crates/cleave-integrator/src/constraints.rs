@@ -140,6 +140,12 @@ pub struct SurfaceContact {
     /// triangles are searched: the two faces of an unfinished cut meet there, while a point's
     /// own smooth surface around it is never a contact.
     pub on_cut: Vec<bool>,
+    /// The piece each triangle bounds (empty: each connected part of the surface is a piece).
+    /// A piece's surface need not be connected: a crack that ends inside the material leaves
+    /// a closed two-sided sheet within it, not joined to the piece's outer surface, whose
+    /// points lie inside that surface. Taken as a body of its own, the sheet would penetrate its
+    /// own piece by up to the reach at rest (docs/math/contact.md §5).
+    pub piece: Vec<u32>,
     /// Penalty stiffness per contact point [N/m].
     pub stiffness: Real,
     /// Normal damping per contact point [N·s/m].

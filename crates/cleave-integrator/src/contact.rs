@@ -529,6 +529,16 @@ impl ContactSet {
                 parent[b as usize] = a;
                 parent[c as usize] = a;
             }
+            // The parts of one piece's surface are one component: a sheet a crack left inside a
+            // piece lies inside the rest of its surface, which is not a contact (`SurfaceContact::piece`).
+            if surface.piece.len() == surface.triangles.len() {
+                let mut first_of_piece: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+                for (t, &piece) in surface.triangles.iter().zip(&surface.piece) {
+                    let first = *first_of_piece.entry(piece).or_insert(t[0]);
+                    let (a, b) = (find(&mut parent, first), find(&mut parent, t[0]));
+                    parent[b as usize] = a;
+                }
+            }
             let roots: Vec<u32> = (0..points.len() as u32).map(|i| find(&mut parent, i)).collect();
             let mut compact = vec![u32::MAX; points.len()];
             let mut count = 0;
@@ -1767,6 +1777,7 @@ mod tests {
             surface_contact: Some(SurfaceContact {
                 triangles: vec![[0, 1, 2], [3, 4, 5]],
                 on_cut: Vec::new(),
+                piece: Vec::new(),
                 stiffness: 1e4,
                 damping: 0.0,
                 friction: 0.0,
@@ -1985,6 +1996,7 @@ mod tests {
             surface_contact: Some(SurfaceContact {
                 triangles,
                 on_cut: Vec::new(),
+                piece: Vec::new(),
                 stiffness: 1e4,
                 damping: 0.0,
                 friction: 0.0,
@@ -2072,6 +2084,7 @@ mod tests {
             surface_contact: Some(SurfaceContact {
                 triangles,
                 on_cut,
+                piece: Vec::new(),
                 stiffness: 1e4,
                 damping: 0.0,
                 friction: 0.0,

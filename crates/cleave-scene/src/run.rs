@@ -430,6 +430,7 @@ impl Simulation {
             constraints.surface_contact = Some(SurfaceContact {
                 triangles: surface_triangles.clone(),
                 on_cut: surface_on_cut.clone(),
+                piece: surface_piece.clone(),
                 stiffness: spec.stiffness.0,
                 damping: nonnegative("contact.damping", spec.damping)?,
                 friction: nonnegative("contact.friction", spec.friction)?,
@@ -944,6 +945,7 @@ fn surface_contact_on(settings: &SurfaceContact, surface: &EmbeddedSurface) -> S
     SurfaceContact {
         triangles: surface.triangles.clone(),
         on_cut: surface.on_cut.clone(),
+        piece: surface.piece.clone(),
         stiffness: settings.stiffness,
         damping: settings.damping,
         friction: settings.friction,

@@ -102,7 +102,6 @@ fn a_chip_of_a_millionth_of_a_cell_gains_no_energy() {
 }
 
 #[test]
-#[ignore = "issue 33, open: the soup's crack sheets leave contact pairs 4-5 mm deep in the rest state (penalty energy ~1 J flickering with the active set, +5.2 % over 1.2 s); run with --ignored"]
 fn random_soups_leaving_small_fragments_gain_no_energy() {
     // Twelve random triangles about a cell across (an OBJ soup), then three random planes:
     // fragments of every size, pieces of one element among them. A fixed linear congruential

@@ -35,6 +35,7 @@ fn contact_constraints(
     let surface_contact = surface.map(|(stiffness, friction)| SurfaceContact {
         triangles: s.triangles.clone(),
         on_cut: s.on_cut.clone(),
+        piece: s.piece.clone(),
         stiffness,
         damping: 0.0,
         friction,
@@ -535,4 +536,31 @@ fn contact_structures_built_ahead_are_used_only_for_their_own_surface() {
     let built_at_the_change = run(None);
     assert!(run(Some(true)) == built_at_the_change, "the structures built ahead change the run");
     assert!(run(Some(false)) == built_at_the_change, "structures of another surface change the run");
+}
+
+#[test]
+fn a_crack_ending_inside_the_material_is_no_contact_at_rest() {
+    // One triangle wholly inside a block, 2.5-3.2 mm below its top: the crack it opens ends in
+    // the material on every side, so the piece's surface is its outer box plus a closed
+    // two-sided sheet inside it, not joined to the box. Taken as a body of its own, the sheet
+    // penetrates its own piece at rest by its depth, within the reach (5 mm).
+    let material = Material::new(5e5, 0.3, 1000.0).unwrap();
+    let mut mesh = VirtualNodeMesh::from_box(Point3::origin(), Point3::new(0.2, 0.2, 0.1), 0.05, material).unwrap();
+    let crack = [Point3::new(0.052, 0.061, 0.0975), Point3::new(0.143, 0.072, 0.0968), Point3::new(0.097, 0.151, 0.0972)];
+    mesh.cut(&CutSurface::Triangles(vec![crack])).unwrap();
+    assert_eq!(mesh.pieces().len(), 1);
+    let constraints = contact_constraints(&mut mesh, Vec::new(), Some((1e5, 0.5)));
+    let s = mesh.as_cuttable().unwrap().surface().unwrap();
+    let sheet = s.on_cut.iter().filter(|&&cut| cut).count();
+    let mut integrator = Integrator::new(&mesh, settings(Vector3::zeros()), constraints).unwrap();
+    let report = integrator.step(&mesh).unwrap();
+    println!(
+        "{sheet} sheet triangles; at rest: deepest pair {:.2e} m, penalty energy {:.2e} J, {} surface pairs",
+        report.contacts.max_penetration, report.penalty_energy, report.contacts.surface
+    );
+    assert!(sheet >= 2, "the crack must open a sheet");
+    assert!(report.contacts.max_penetration <= 1e-12, "deepest pair {:.3e} m at rest", report.contacts.max_penetration);
+    assert!(report.penalty_energy <= 1e-12, "penalty energy {:.3e} J at rest", report.penalty_energy);
+    let moved = integrator.positions().iter().zip(mesh.rest_dofs()).map(|(x, r)| (x - r).abs()).fold(0.0, Real::max);
+    assert!(moved <= 1e-12, "a body at rest without loads moved {moved:.3e} m");
 }
