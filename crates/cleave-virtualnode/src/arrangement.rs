@@ -642,6 +642,7 @@ impl Arrangement {
         let cells = std::mem::take(&mut self.cells);
         let mut out = Vec::with_capacity(cells.len() + 4);
         for cell in cells {
+            self.snap_faces_onto(&cell, p);
             match self.split(&cell, p, cover) {
                 Split::Both(neg, pos) => {
                     out.push(neg);
@@ -661,6 +662,7 @@ impl Arrangement {
 
     fn cut_cell(&mut self, cell: Cell, tri: &PreparedTriangle, cover: Cover, out: &mut Vec<Cell>) -> bool {
         let p = tri.plane;
+        self.snap_faces_onto(&cell, p);
         match self.split(&cell, p, cover) {
             Split::Both(neg, pos) => {
                 let cap = &neg.faces.last().expect("a split cell has its cap").verts;
@@ -725,6 +727,29 @@ impl Arrangement {
                 self.cover_faces_on(&mut inner, p, cover);
                 out.push(inner);
                 true
+            }
+        }
+    }
+
+    /// Records the vertices of every face of `cell` that lies within the weld tolerance of plane
+    /// `p` (all its vertices, not all exactly) as lying on `p`, so that the face is taken to lie
+    /// in it ([`Self::face_on`]) and is covered by what cuts along `p`. Two planes of different
+    /// cuts can nearly coincide: a wavy sheet's triangle at z = 0.045 and a blade strip's side
+    /// plane 3e-17 m above it left the strip's face (on the side plane) uncovered by the
+    /// sheet, joining the material above and below the sheet through it. Isolated vertices
+    /// near the plane are left to the exact predicates: snapping them too let coverage slip
+    /// between two triangles' prisms when carving the bunny.
+    fn snap_faces_onto(&mut self, cell: &Cell, p: u32) {
+        let plane = self.planes[p as usize];
+        let tolerance = WELD_TOLERANCE * self.scale2.sqrt() * plane.normal.norm();
+        for face in &cell.faces {
+            if face.plane == p || face.verts.iter().all(|&v| self.vertices[v as usize].on(p)) {
+                continue;
+            }
+            if face.verts.iter().all(|&v| plane.distance(&self.vertices[v as usize].p).abs() <= tolerance) {
+                for &v in &face.verts {
+                    self.vertices[v as usize].add_plane(p);
+                }
             }
         }
     }

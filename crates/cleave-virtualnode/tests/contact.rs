@@ -546,7 +546,8 @@ fn a_crack_ending_inside_the_material_is_no_contact_at_rest() {
     // penetrates its own piece at rest by its depth, within the reach (5 mm).
     let material = Material::new(5e5, 0.3, 1000.0).unwrap();
     let mut mesh = VirtualNodeMesh::from_box(Point3::origin(), Point3::new(0.2, 0.2, 0.1), 0.05, material).unwrap();
-    let crack = [Point3::new(0.052, 0.061, 0.0975), Point3::new(0.143, 0.072, 0.0968), Point3::new(0.097, 0.151, 0.0972)];
+    let crack =
+        [Point3::new(0.052, 0.061, 0.0975), Point3::new(0.143, 0.072, 0.0968), Point3::new(0.097, 0.151, 0.0972)];
     mesh.cut(&CutSurface::Triangles(vec![crack])).unwrap();
     assert_eq!(mesh.pieces().len(), 1);
     let constraints = contact_constraints(&mut mesh, Vec::new(), Some((1e5, 0.5)));
