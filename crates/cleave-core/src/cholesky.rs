@@ -62,6 +62,10 @@ pub struct SparseCholesky {
     order_groups: usize,
     /// The matrix's lower triangle in elimination order (once per pattern).
     permuted: PermutedLower,
+    /// Floating-point operations of one numeric factorization, from the symbolic structure.
+    flops: f64,
+    /// faer's parallelism for this factor's factorizations and solves ([`parallelism`]).
+    par: Par,
 }
 
 /// The lower triangle of `P A Pᵀ` as the supernodal factorization reads it, and for each of its
@@ -171,14 +175,48 @@ impl std::fmt::Debug for SparseCholesky {
     }
 }
 
-/// faer's parallelism for the factorization and the solves: sequential on a pool of at most two
-/// threads. Measured on 2 cores (`bunny_slice.ron`, 5k DOFs, 1.4M factor nonzeros): 25–26 ms
-/// per factorization and solve sequential, 41–49 ms on `Par::rayon` — faer's parallel
-/// supernodal kernels spin-wait for work that two cores shared with the step's own rayon work
-/// cannot give them (6 s of system time a run against 1 s). Wider pools keep faer's parallel
-/// kernels (not measured here).
-fn parallelism() -> Par {
-    if rayon::current_num_threads() <= 2 { Par::Seq } else { Par::rayon(0) }
+/// Factorization work (floating-point operations) from which faer's parallel kernels pay.
+/// faer's parallel supernodal kernels spin-wait for work; on small factors the threads of a
+/// two-core machine cannot give it them (bunny_slice's systems, 5k DOFs, 1.4M factor nonzeros:
+/// 25–26 ms a step sequential, 41–49 ms parallel, when every pool of at most two threads was
+/// sequential). Measured on 2 idle cores with `cargo run --release -p cleave-core --example
+/// cholesky_threads` (3D grids of 8-node cells, one factorization and solve, best of three):
+///
+/// | DOFs | flops | sequential [ms] | parallel [ms] |
+/// |---|---|---|---|
+/// | 3,000 | 2.4e8 | 17.1 | 18.8 |
+/// | 5,184 | 8.1e8 | 47.1 | 50.5 |
+/// | 6,591 | 1.5e9 | 77.8 | 69.8 |
+/// | 17,496 | 1.4e10 | 636 | 419 |
+/// | 52,728 | 1.5e11 | 5,912 | 3,277 |
+///
+/// Below the crossover the difference is a few percent; above it parallel approaches 2×.
+pub const PARALLEL_FACTOR_FLOPS: f64 = 1e9;
+
+/// faer's parallelism for a factor of `flops` operations: sequential below
+/// [`PARALLEL_FACTOR_FLOPS`] or on one thread, every thread of the pool above.
+fn parallelism(flops: f64) -> Par {
+    if rayon::current_num_threads() <= 1 || flops < PARALLEL_FACTOR_FLOPS { Par::Seq } else { Par::rayon(0) }
+}
+
+/// Floating-point operations of a numeric Cholesky factorization with this structure: Σ_j c_j²
+/// over the factor's columns, `c_j` the nonzeros of column j (the multiply–adds of its updates
+/// to later columns, up to lower-order terms).
+fn factor_flops(symbolic: &SymbolicCholesky<usize>) -> f64 {
+    match symbolic.raw() {
+        SymbolicCholeskyRaw::Supernodal(raw) => {
+            let rows = raw.col_ptr_for_row_idx();
+            (0..raw.n_supernodes())
+                .map(|s| {
+                    let width = raw.supernode_end()[s] - raw.supernode_begin()[s];
+                    let below = (rows[s + 1] - rows[s]) as f64;
+                    // Column k of the supernode holds (width − k) rows of the diagonal block.
+                    (1..=width).map(|k| (k as f64 + below).powi(2)).sum::<f64>()
+                })
+                .sum()
+        }
+        SymbolicCholeskyRaw::Simplicial(raw) => raw.col_ptr().windows(2).map(|w| ((w[1] - w[0]) as f64).powi(2)).sum(),
+    }
 }
 
 impl SparseCholesky {
@@ -209,19 +247,24 @@ impl SparseCholesky {
         );
         let symbolic = symbolic.map_err(|e| CholeskyError::Setup(format!("symbolic factorization: {e:?}")))?;
         let order_groups = ordering.groups;
-        let par = parallelism();
-        let supernodal_scratch = match symbolic.raw() {
-            SymbolicCholeskyRaw::Supernodal(raw) => {
-                supernodal::factorize_supernodal_numeric_llt_scratch::<usize, Real>(raw, par, Default::default())
-            }
-            SymbolicCholeskyRaw::Simplicial(_) => StackReq::empty(),
+        let flops = factor_flops(&symbolic);
+        let par = parallelism(flops);
+        // Sized for both parallelisms, so that `set_parallel` may switch.
+        let requirement = |par: Par| {
+            let supernodal = match symbolic.raw() {
+                SymbolicCholeskyRaw::Supernodal(raw) => {
+                    supernodal::factorize_supernodal_numeric_llt_scratch::<usize, Real>(raw, par, Default::default())
+                }
+                SymbolicCholeskyRaw::Simplicial(_) => StackReq::empty(),
+            };
+            StackReq::any_of(&[
+                symbolic.factorize_numeric_llt_scratch::<Real>(par, Default::default()),
+                supernodal,
+                symbolic.solve_in_place_scratch::<Real>(1, par),
+            ])
         };
-        let scratch = MemBuffer::try_new(StackReq::any_of(&[
-            symbolic.factorize_numeric_llt_scratch::<Real>(par, Default::default()),
-            supernodal_scratch,
-            symbolic.solve_in_place_scratch::<Real>(1, par),
-        ]))
-        .map_err(|_| CholeskyError::Setup("out of memory for the Cholesky workspace".into()))?;
+        let scratch = MemBuffer::try_new(StackReq::any_of(&[requirement(Par::Seq), requirement(Par::rayon(0))]))
+            .map_err(|_| CholeskyError::Setup("out of memory for the Cholesky workspace".into()))?;
         let factor_values = crate::assembly::resident_zeros(symbolic.len_val());
         let column_scratch = (0, MemBuffer::new(StackReq::empty()));
         Ok(Self {
@@ -234,12 +277,31 @@ impl SparseCholesky {
             factored: false,
             order_groups,
             permuted,
+            flops,
+            par,
         })
     }
 
     /// Nonzeros of the factor `L`.
     pub fn factor_nnz(&self) -> usize {
         self.symbolic.len_val()
+    }
+
+    /// Floating-point operations of one numeric factorization (Σ_j c_j² over the factor's
+    /// columns), from which faer's parallel kernels are used ([`PARALLEL_FACTOR_FLOPS`]).
+    pub fn factor_flops(&self) -> f64 {
+        self.flops
+    }
+
+    /// Whether this factor's factorizations and solves use faer's parallel kernels.
+    pub fn is_parallel(&self) -> bool {
+        !matches!(self.par, Par::Seq)
+    }
+
+    /// Overrides the choice of [`PARALLEL_FACTOR_FLOPS`] (to measure it): faer's parallel
+    /// kernels on every thread of the pool, or none. The workspace is sized for either.
+    pub fn set_parallel(&mut self, parallel: bool) {
+        self.par = if parallel && rayon::current_num_threads() > 1 { Par::rayon(0) } else { Par::Seq };
     }
 
     /// Vertices of the quotient graph the ordering was computed on.
@@ -260,7 +322,7 @@ impl SparseCholesky {
                 SparseColMatRef::new(permuted.matrix.as_ref(), &permuted.values),
                 LltRegularization::default(),
                 raw,
-                parallelism(),
+                self.par,
                 MemStack::new(&mut self.scratch),
                 Default::default(),
             )
@@ -272,7 +334,7 @@ impl SparseCholesky {
                     SparseColMatRef::new(permuted.matrix.as_ref(), &permuted.values),
                     Side::Lower,
                     LltRegularization::default(),
-                    parallelism(),
+                    self.par,
                     MemStack::new(&mut self.scratch),
                     Default::default(),
                 )
@@ -287,7 +349,7 @@ impl SparseCholesky {
     /// # Panics
     /// Before a successful [`factorize`](Self::factorize): a caller bug, not a user-input error.
     pub fn solve_in_place(&mut self, rhs: &mut [Real]) {
-        self.solve_with(rhs, parallelism());
+        self.solve_with(rhs, self.par);
     }
 
     /// As [`solve_in_place`](Self::solve_in_place) on one thread (for small systems solved often,
@@ -310,7 +372,7 @@ impl SparseCholesky {
         if columns == 0 {
             return;
         }
-        let par = parallelism();
+        let par = self.par;
         if self.column_scratch.0 < columns {
             self.column_scratch = (columns, MemBuffer::new(self.symbolic.solve_in_place_scratch::<Real>(columns, par)));
         }
@@ -649,5 +711,56 @@ mod tests {
         assert!(rhs.iter().zip(&faers_solution).all(|(a, b)| a.to_bits() == b.to_bits()));
         let error = rhs.iter().zip(&x_true).map(|(a, t)| (a - t).abs()).fold(0.0, Real::max);
         assert!(error < 1e-10, "max error {error}");
+    }
+
+    /// Σ_j c_j² by elimination on bit sets: the structure of `P A Pᵀ`, then for each column k
+    /// every row of it below k gains k's structure below the diagonal (the elimination graph).
+    fn flops_by_elimination(pattern: &AssemblyPattern, perm: &[usize]) -> f64 {
+        let n = pattern.dim();
+        let words = n.div_ceil(64);
+        let mut new_of_old = vec![0; n];
+        for (new, &old) in perm.iter().enumerate() {
+            new_of_old[old] = new;
+        }
+        // Column j's rows (a symmetric structure: rows of column j = columns of row j).
+        let mut structure = vec![0u64; n * words];
+        for old_col in 0..n {
+            for &old_row in &pattern.row_idx()[pattern.col_ptr()[old_col]..pattern.col_ptr()[old_col + 1]] {
+                let (r, c) = (new_of_old[old_row], new_of_old[old_col]);
+                structure[c * words + r / 64] |= 1 << (r % 64);
+            }
+        }
+        let mut flops = 0.0;
+        for k in 0..n {
+            let below: Vec<usize> = (k..n).filter(|&r| structure[k * words + r / 64] >> (r % 64) & 1 == 1).collect();
+            flops += (below.len() as f64).powi(2);
+            for &i in below.iter().filter(|&&i| i > k) {
+                for &r in &below {
+                    if r >= i {
+                        structure[i * words + r / 64] |= 1 << (r % 64);
+                    }
+                }
+            }
+        }
+        flops
+    }
+
+    #[test]
+    fn the_flop_count_is_that_of_the_elimination() {
+        // Simplicial (a chain) and supernodal (the grid) structures against the elimination on
+        // bit sets in the same order: equal for the simplicial factor; the supernodal one may
+        // hold explicit zeros where faer merged columns into supernodes, so it counts at least
+        // as much, and not much more.
+        let (chain, _) = chain_system(0.1);
+        let cholesky = SparseCholesky::new(&chain).unwrap();
+        assert!(matches!(cholesky.symbolic.raw(), SymbolicCholeskyRaw::Simplicial(_)));
+        assert_eq!(cholesky.factor_flops(), flops_by_elimination(&chain, &cholesky.perm));
+        let (grid, values) = symmetric_grid_system();
+        let cholesky = supernodal_factor(&grid, &values);
+        let exact = flops_by_elimination(&grid, &cholesky.perm);
+        let counted = cholesky.factor_flops();
+        println!("grid: {counted:.4e} flops counted, {exact:.4e} by elimination");
+        assert!(counted >= exact && counted <= 1.3 * exact, "{counted} against {exact}");
+        assert!(!cholesky.is_parallel(), "{counted} flops are below the parallel threshold");
     }
 }
