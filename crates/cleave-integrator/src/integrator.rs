@@ -554,6 +554,12 @@ impl Integrator {
         self.two_level.as_ref().map(TwoLevel::size)
     }
 
+    /// Times this epoch's coarse operator was factorized again to take the steps' contacts
+    /// (two-level preconditioner only).
+    pub fn coarse_refreshes(&self) -> Option<usize> {
+        self.two_level.as_ref().map(TwoLevel::refreshes)
+    }
+
     /// Energies of the current state (rotations must be current, which they are between steps).
     pub fn energies(&mut self, discretization: &dyn Discretization) -> StepReport {
         let mut report = StepReport {
@@ -732,6 +738,11 @@ impl Integrator {
                 }
                 Solver::ConjugateGradient { tolerance, max_iterations, .. } => {
                     self.build_preconditioner(discretization, mass_scale, stiffness_scale, h);
+                    if let (Some(two_level), Some(points)) =
+                        (self.two_level.as_mut(), self.constraints.contact_points.as_ref())
+                    {
+                        two_level.take_contacts(points, &self.work.contacts.contacts)?;
+                    }
                     for (v, &p) in self.v.iter_mut().zip(&self.pinned) {
                         if p {
                             *v = 0.0;

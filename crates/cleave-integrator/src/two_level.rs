@@ -5,15 +5,21 @@
 //! ```
 //!
 //! where `P` is the backend's prolongation ([`cleave_core::CoarseSpace`]), `Z` zeroes pinned DOFs
-//! and `A₀ = c_M M + c_K K + h² K_pins` is the step matrix with the rotations at identity and
-//! without contacts. `A₀` does not change within an epoch, so `A_c` is assembled and
-//! Cholesky-factorized once per epoch and every application costs one restriction, one pair of
-//! triangular solves and one prolongation. The additive form is symmetric positive definite for
-//! any positive definite `A_c`, so CG stays valid however far the rotations and contacts of a step
-//! drift from `A₀`; they only cost iterations. The design and its measurements:
-//! `docs/results/voxel-bench.md`.
+//! and `A₀ = c_M M + c_K K + h² K_pins + K_contacts` is the step matrix with the rotations at
+//! identity and the contacts of some recent step. `A₀` without contacts does not change within
+//! an epoch, so its Galerkin values are assembled once per epoch; the contacts' terms are added
+//! and `A_c` is factorized again (same pattern, symbolic analysis kept) only when the active
+//! contacts differ from those it holds by more than [`CONTACT_REFRESH_FRACTION`]. Every
+//! application costs one restriction, one pair of triangular solves and one prolongation. The
+//! additive form is symmetric positive definite for any positive definite `A_c`, so CG stays valid
+//! however far the rotations and contacts of a step drift from `A₀`; they only cost iterations.
+//! Contact stiffness is why the contacts are in it: a resting body's penalty terms `h² k` are
+//! thousands of times its nodes' masses, and a coarse operator without them proposes corrections
+//! the contacts resist (the voxel bunny at rest: 16 CG iterations a step without, see
+//! `docs/results/voxel-bench.md`).
 
 use crate::constraints::PenaltyPins;
+use crate::contact::{self, Contact};
 use crate::error::StepErrorKind;
 use cleave_core::{AssemblyPattern, CoarseSpace, Discretization, Embedding, Matrix3, Real, SparseCholesky};
 use rayon::prelude::*;
@@ -27,7 +33,22 @@ pub(crate) struct TwoLevel {
     pinned: Vec<bool>,
     cholesky: SparseCholesky,
     coarse: Vec<Real>,
+    /// The coarse pattern and `Pᵀ Z A₀ Z P` without contacts (the epoch's part).
+    pattern: AssemblyPattern,
+    base_values: Vec<Real>,
+    /// Scratch for the values with contacts.
+    values: Vec<Real>,
+    /// The contacts `A_c` holds, as sorted (kind, slot) keys, and this step's.
+    held: Vec<(u8, u32)>,
+    current: Vec<(u8, u32)>,
+    /// Times `A_c` was factorized again for contacts (for the step reports).
+    refreshes: usize,
 }
+
+/// Fraction of the contacts (of the larger of the held and the active set) that may differ
+/// between the step and `A_c` before `A_c` takes the step's contacts and is factorized again.
+/// Any `A_c` keeps the preconditioner valid; this trades factorizations against iterations.
+pub(crate) const CONTACT_REFRESH_FRACTION: Real = 0.25;
 
 /// Coarse nodes of the union of the prolongation rows of `nodes`, sorted.
 fn coarse_union(prolongation: &Embedding, nodes: &[u32], out: &mut Vec<u32>) {
@@ -187,7 +208,75 @@ impl TwoLevel {
             weights.extend(list.iter().map(|e| e.1));
             restriction.push_row(&nodes, &weights);
         }
-        Ok(Self { prolongation, restriction, pinned: pinned.to_vec(), cholesky, coarse: vec![0.0; dim] })
+        Ok(Self {
+            prolongation,
+            restriction,
+            pinned: pinned.to_vec(),
+            cholesky,
+            coarse: vec![0.0; dim],
+            base_values: values.clone(),
+            values,
+            pattern,
+            held: Vec::new(),
+            current: Vec::new(),
+            refreshes: 0,
+        })
+    }
+
+    /// Takes the step's active `contacts` into `A_c` when they differ from those it holds by more
+    /// than [`CONTACT_REFRESH_FRACTION`]: `A_c = Pᵀ Z (A₀ + Σ_contacts w wᵀ ⊗ P_c) Z P`, refactorized
+    /// on the kept symbolic analysis. A contact whose coarse nodes the coarse pattern does not
+    /// couple (two pieces' cubes in different coarse cells) is left out: `A_c` only has to be
+    /// positive definite. Returns whether it refactorized.
+    pub(crate) fn take_contacts(&mut self, points: &Embedding, contacts: &[Contact]) -> Result<bool, StepErrorKind> {
+        self.current.clear();
+        self.current.extend(contacts.iter().map(|c| (c.kind as u8, c.slot)));
+        self.current.sort_unstable();
+        let (mut differ, mut i, mut j) = (0usize, 0usize, 0usize);
+        while i < self.held.len() || j < self.current.len() {
+            match (self.held.get(i), self.current.get(j)) {
+                (Some(a), Some(b)) if a == b => (i, j) = (i + 1, j + 1),
+                (Some(a), Some(b)) if a < b => (differ, i) = (differ + 1, i + 1),
+                (Some(_), None) => (differ, i) = (differ + 1, i + 1),
+                _ => (differ, j) = (differ + 1, j + 1),
+            }
+        }
+        let size = self.held.len().max(self.current.len());
+        if differ == 0 || (differ as Real) <= CONTACT_REFRESH_FRACTION * size as Real {
+            return Ok(false);
+        }
+        self.values.copy_from_slice(&self.base_values);
+        let mut galerkin = Galerkin {
+            prolongation: &self.prolongation,
+            pinned: &self.pinned,
+            pattern: &self.pattern,
+            union: Vec::new(),
+            local: Vec::new(),
+        };
+        let (mut nodes, mut weights) = (Vec::new(), Vec::new());
+        for c in contacts {
+            nodes.clear();
+            weights.clear();
+            contact::for_each_entry(points, c, |n, w| {
+                nodes.push(n);
+                weights.push(w);
+            });
+            coarse_union(galerkin.prolongation, &nodes, &mut galerkin.union);
+            let union = &galerkin.union;
+            if !union.iter().all(|&a| union.iter().all(|&b| galerkin.pattern.rank(a, b).is_some())) {
+                continue;
+            }
+            galerkin.add(&nodes, |i, j| c.matrix * (weights[i] * weights[j]), &mut self.values);
+        }
+        self.cholesky.factorize(&self.values)?;
+        std::mem::swap(&mut self.held, &mut self.current);
+        self.refreshes += 1;
+        Ok(true)
+    }
+
+    /// Times `A_c` was factorized again for the step's contacts.
+    pub(crate) fn refreshes(&self) -> usize {
+        self.refreshes
     }
 
     /// Coarse DOFs and nonzeros of the coarse factor.

@@ -2,7 +2,7 @@
 //! momentum, bounded energy, agreement of the three solver paths, contact, and step errors.
 
 use cleave_core::{Discretization, Material, Point3, Real, Vector3};
-use cleave_integrator::{Constraints, Integrator, PlaneCollider, Settings, Solver, StepErrorKind};
+use cleave_integrator::{Constraints, Integrator, PlaneCollider, Preconditioner, Settings, Solver, StepErrorKind};
 use cleave_voxel::VoxelMesh;
 
 fn block(material: Material) -> VoxelMesh {
@@ -183,4 +183,56 @@ fn failures_are_step_errors_not_panics() {
     assert_eq!(error.step, 1);
     assert!(matches!(error.kind, StepErrorKind::NotFinite { .. }), "{error}");
     assert!(error.to_string().starts_with("step 1:"));
+}
+
+/// Mean CG iterations a step of a block settling on the ground and resting there (two-level
+/// preconditioner, the bunny scene's tolerance), and how often the coarse operator was
+/// factorized again for the contacts.
+fn resting_iterations() -> (Real, usize, Real) {
+    // 12 × 12 × 4 cubes of 2.5 cm, E and the ground as in scenes/bunny_drop_voxel.ron, placed
+    // 1 mm above the ground.
+    let mesh =
+        VoxelMesh::from_box(Material::new(2e5, 0.3, 1000.0).unwrap(), Point3::new(0.0, 0.0, 0.001), 0.025, [12, 12, 4])
+            .unwrap();
+    let points: Vec<Point3<Real>> = mesh.rest_dofs().chunks(3).map(|p| Point3::new(p[0], p[1], p[2])).collect();
+    let constraints = Constraints {
+        contact_points: Some(mesh.embed(&points).unwrap()),
+        planes: vec![PlaneCollider {
+            point: Point3::origin(),
+            normal: Vector3::z(),
+            stiffness: 2e4,
+            damping: 20.0,
+            friction: 0.0,
+        }],
+        ..Default::default()
+    };
+    let mut settings = Settings::new(1.0 / 60.0);
+    settings.solver = Solver::ConjugateGradient { tolerance: 1e-3, max_iterations: 1000, assembled: false };
+    settings.preconditioner = Preconditioner::TwoLevel;
+    settings.rayleigh_beta = 0.01;
+    let mut integrator = Integrator::new(&mesh, settings, constraints).unwrap();
+    let mut at_rest = 0;
+    for step in 0..120 {
+        let report = integrator.step(&mesh).unwrap();
+        if step >= 60 {
+            at_rest += report.iterations;
+        }
+    }
+    let lowest = integrator.positions().chunks(3).map(|p| p[2]).fold(Real::INFINITY, Real::min);
+    (at_rest as Real / 60.0, integrator.coarse_refreshes().unwrap(), lowest)
+}
+
+#[test]
+fn a_block_resting_on_the_ground_needs_few_cg_iterations_with_its_contacts_in_the_coarse_operator() {
+    // The penalty terms h²k of the 144 contacts under the block are 3000 times a node's mass;
+    // a coarse operator without them needed 16 iterations a step at rest on the voxel bunny
+    // (docs/results/voxel-bench.md) and 4.8 on this block; with them 1.2.
+    let (iterations, refreshes, lowest) = resting_iterations();
+    println!(
+        "{iterations:.2} CG iterations a step at rest, coarse operator factorized again {refreshes} times, lowest z {lowest:.2e} m"
+    );
+    // Resting on the ground: the penalty sag m g / (n k) = 88 N / (169 · 2e4 N/m) is 0.026 mm.
+    assert!(lowest < 0.0 && lowest > -1e-4, "lowest point {lowest}");
+    assert!(refreshes >= 1 && refreshes <= 10, "{refreshes} refactorizations");
+    assert!(iterations <= 2.5, "{iterations} iterations a step at rest");
 }
