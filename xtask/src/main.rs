@@ -5,6 +5,7 @@ mod animation;
 mod compare;
 mod cutting;
 mod machine;
+mod perf;
 mod plots;
 mod raster;
 mod recording;
@@ -106,6 +107,17 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// The headline measurements (bunny_slice, the voxel bunny drop, Table 1's solves, the voxel
+    /// stiffness action), appended with the commit to docs/results/perf-history.csv; prints the
+    /// ratio of each to the previous row.
+    Perf {
+        /// History file to append to.
+        #[arg(long, default_value = "docs/results/perf-history.csv")]
+        history: PathBuf,
+        /// No progress lines.
+        #[arg(long)]
+        quiet: bool,
+    },
     /// The stability grid (E × ν × h and extreme starts) for every registered backend; write
     /// stability.md and stability.csv.
     Stability {
@@ -183,6 +195,7 @@ fn main() {
                 })
             }
         }
+        Command::Perf { history, quiet } => perf::perf(perf::PerfArgs { history, quiet }),
         Command::Stability { quick, backend, out, quiet } => stability::stability(stability::StabilityArgs {
             quick,
             backends: backend,
