@@ -233,6 +233,6 @@ fn a_block_resting_on_the_ground_needs_few_cg_iterations_with_its_contacts_in_th
     );
     // Resting on the ground: the penalty sag m g / (n k) = 88 N / (169 · 2e4 N/m) is 0.026 mm.
     assert!(lowest < 0.0 && lowest > -1e-4, "lowest point {lowest}");
-    assert!(refreshes >= 1 && refreshes <= 10, "{refreshes} refactorizations");
+    assert!((1..=10).contains(&refreshes), "{refreshes} refactorizations");
     assert!(iterations <= 2.5, "{iterations} iterations a step at rest");
 }
