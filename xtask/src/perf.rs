@@ -53,7 +53,7 @@ pub fn perf(args: PerfArgs) -> Result<()> {
     };
     let mut figures = Vec::with_capacity(FIGURES.len());
     say("scenes/bunny_slice.ron");
-    let (all, cutting, others, share) = scene_rates(Path::new("scenes/bunny_slice.ron"))?;
+    let (all, cutting, others, share, _) = scene_run(Path::new("scenes/bunny_slice.ron"))?;
     figures.extend([all, cutting, others, share]);
     say("scenes/bunny_drop_voxel.ron");
     let (steps_per_s, _, _, _, iterations) = scene_run(Path::new("scenes/bunny_drop_voxel.ron"))?;
@@ -68,14 +68,22 @@ pub fn perf(args: PerfArgs) -> Result<()> {
     figures.push(stiffness_gflops()?);
 
     let commit = git(&["rev-parse", "--short", "HEAD"]).unwrap_or_else(|| "unknown".into());
-    let dirty = git(&["status", "--porcelain", "--untracked-files=no"]).is_some_and(|s| !s.is_empty());
+    // Changes to tracked files other than the history itself (which the last run edited).
+    let dirty = git(&["status", "--porcelain", "--untracked-files=no", "--", ".", ":!docs/results/perf-history.csv"])
+        .is_some_and(|s| !s.is_empty());
     let load = fs::read_to_string("/proc/loadavg")
         .ok()
         .and_then(|t| t.split_whitespace().next().map(str::to_string))
         .unwrap_or_default();
-    let date = chrono_free_date();
+    let date = today_utc();
     let header = format!("date,commit,load_1min,{}", FIGURES.map(|f| f.0).join(","));
-    let previous = fs::read_to_string(&args.history).ok();
+    // Only a missing file starts a new history: any other read error stops before writing.
+    let previous = match fs::read_to_string(&args.history) {
+        Ok(text) if text.trim().is_empty() => None,
+        Ok(text) => Some(text),
+        Err(error) if error.kind() == std::io::ErrorKind::NotFound => None,
+        Err(error) => return Err(error).with_context(|| format!("reading {}", args.history.display())),
+    };
     if let Some(text) = &previous
         && text.lines().next() != Some(header.as_str())
     {
@@ -92,6 +100,9 @@ pub fn perf(args: PerfArgs) -> Result<()> {
         figures.iter().map(|v| format!("{v:.4}")).collect::<Vec<_>>().join(",")
     );
     let mut text = previous.unwrap_or_else(|| header.clone() + "\n");
+    if !text.ends_with('\n') {
+        text.push('\n');
+    }
     text.push_str(&row);
     text.push('\n');
     fs::write(&args.history, text).with_context(|| format!("writing {}", args.history.display()))?;
@@ -144,12 +155,6 @@ fn scene_run(path: &Path) -> Result<(f64, f64, f64, f64, f64)> {
     ))
 }
 
-/// [`scene_run`]'s rates and contact share.
-fn scene_rates(path: &Path) -> Result<(f64, f64, f64, f64)> {
-    let (all, cutting, others, share, _) = scene_run(path)?;
-    Ok((all, cutting, others, share))
-}
-
 /// The voxel stiffness action `out += K dx` with the corotated kernel on 22 × 22 × 21 cubes
 /// (10,164, the voxel bunny's size) at identity rotations, best of five runs of 50 products:
 /// GFLOP/s counting 1,392 operations a cube (the 24 × 24 product, 1,152, and rotating the eight
@@ -167,7 +172,7 @@ fn stiffness_gflops() -> Result<f64> {
     let rotations = vec![Matrix3::identity(); d.num_frames()];
     let dx: Vec<Real> = (0..3 * d.num_nodes()).map(|i| (i as Real * 0.37).sin()).collect();
     let mut out = vec![0.0; dx.len()];
-    let cubes = 22 * 22 * 21;
+    let cubes: usize = grid.dims.iter().product();
     let mut best = f64::INFINITY;
     for _ in 0..5 {
         let clock = Instant::now();
@@ -187,7 +192,7 @@ fn git(args: &[&str]) -> Option<String> {
 
 /// Today's UTC date from the system clock, as YYYY-MM-DD (civil from days, Howard Hinnant's
 /// algorithm), without a date crate.
-fn chrono_free_date() -> String {
+fn today_utc() -> String {
     let seconds = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
     let days = (seconds / 86_400) as i64 + 719_468;
     let era = days.div_euclid(146_097);

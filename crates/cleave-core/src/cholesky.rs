@@ -344,7 +344,8 @@ impl SparseCholesky {
         result.map_err(|LltError::NonPositivePivot { index }| CholeskyError::NotPositiveDefinite { pivot: index })
     }
 
-    /// Solves `A x = rhs` in place with the last successful factorization, on all cores.
+    /// Solves `A x = rhs` in place with the last successful factorization, with this factor's
+    /// parallelism ([`PARALLEL_FACTOR_FLOPS`]).
     ///
     /// # Panics
     /// Before a successful [`factorize`](Self::factorize): a caller bug, not a user-input error.
@@ -374,7 +375,12 @@ impl SparseCholesky {
         }
         let par = self.par;
         if self.column_scratch.0 < columns {
-            self.column_scratch = (columns, MemBuffer::new(self.symbolic.solve_in_place_scratch::<Real>(columns, par)));
+            // Sized for both parallelisms, as the main workspace, so `set_parallel` may switch.
+            let requirement = StackReq::any_of(&[
+                self.symbolic.solve_in_place_scratch::<Real>(columns, Par::Seq),
+                self.symbolic.solve_in_place_scratch::<Real>(columns, Par::rayon(0)),
+            ]);
+            self.column_scratch = (columns, MemBuffer::new(requirement));
         }
         self.solve_permuted(rhs, par, true);
     }

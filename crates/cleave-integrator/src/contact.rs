@@ -531,11 +531,16 @@ impl ContactSet {
             }
             // The parts of one piece's surface are one component: a sheet a crack left inside a
             // piece lies inside the rest of its surface, which is not a contact (`SurfaceContact::piece`).
+            // (The integrator refuses a piece list of another length than the triangles'.)
             if surface.piece.len() == surface.triangles.len() {
-                let mut first_of_piece: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+                let pieces = surface.piece.iter().max().map_or(0, |&p| p as usize + 1);
+                let mut first_of_piece = vec![u32::MAX; pieces];
                 for (t, &piece) in surface.triangles.iter().zip(&surface.piece) {
-                    let first = *first_of_piece.entry(piece).or_insert(t[0]);
-                    let (a, b) = (find(&mut parent, first), find(&mut parent, t[0]));
+                    let first = &mut first_of_piece[piece as usize];
+                    if *first == u32::MAX {
+                        *first = t[0];
+                    }
+                    let (a, b) = (find(&mut parent, *first), find(&mut parent, t[0]));
                     parent[b as usize] = a;
                 }
             }

@@ -89,6 +89,14 @@ pub enum StepErrorKind {
         /// embedded points
         points: usize,
     },
+    /// Surface contact with a piece list that does not give one piece per triangle.
+    #[error("surface contact has {pieces} piece entries for {triangles} triangles")]
+    SurfacePieces {
+        /// piece entries given
+        pieces: usize,
+        /// surface triangles
+        triangles: usize,
+    },
     /// Something else from the sparse solver.
     #[error("sparse solver failure: {0}")]
     Solver(String),

@@ -232,6 +232,7 @@ impl PreparedContact {
         if let Some(surface) = &constraints.surface_contact {
             surface.triangles.hash(&mut hasher);
             surface.on_cut.hash(&mut hasher);
+            surface.piece.hash(&mut hasher);
         }
         (
             constraints.contact_points.as_ref().map_or(0, Embedding::len),
@@ -433,6 +434,15 @@ impl Integrator {
             && pins.targets.len() != pins.points.len()
         {
             return Err(StepErrorKind::PinTargets { targets: pins.targets.len(), points: pins.points.len() });
+        }
+        if let Some(surface) = &self.constraints.surface_contact
+            && !surface.piece.is_empty()
+            && surface.piece.len() != surface.triangles.len()
+        {
+            return Err(StepErrorKind::SurfacePieces {
+                pieces: surface.piece.len(),
+                triangles: surface.triangles.len(),
+            });
         }
         Ok(())
     }

@@ -8,8 +8,8 @@
 //! and `A₀ = c_M M + c_K K + h² K_pins + K_contacts` is the step matrix with the rotations at
 //! identity and the contacts of some recent step. `A₀` without contacts does not change within
 //! an epoch, so its Galerkin values are assembled once per epoch; the contacts' terms are added
-//! and `A_c` is factorized again (same pattern, symbolic analysis kept) only when the active
-//! contacts differ from those it holds by more than [`CONTACT_REFRESH_FRACTION`]. Every
+//! and `A_c` is factorized again (same pattern, symbolic analysis kept) only when the contacts that
+//! joined or left since number more than [`CONTACT_REFRESH_FRACTION`] of them. Every
 //! application costs one restriction, one pair of triangular solves and one prolongation. The
 //! additive form is symmetric positive definite for any positive definite `A_c`, so CG stays valid
 //! however far the rotations and contacts of a step drift from `A₀`; they only cost iterations.
@@ -45,9 +45,11 @@ pub(crate) struct TwoLevel {
     refreshes: usize,
 }
 
-/// Fraction of the contacts (of the larger of the held and the active set) that may differ
-/// between the step and `A_c` before `A_c` takes the step's contacts and is factorized again.
-/// Any `A_c` keeps the preconditioner valid; this trades factorizations against iterations.
+/// How many contacts may have joined or left since `A_c` took its contacts (the symmetric
+/// difference of the two sets, keyed by collider kind and point slot), as a fraction of the larger
+/// set, before `A_c` takes the step's contacts and is factorized again. A point that moves to
+/// another triangle keeps its slot and does not count. Any `A_c` keeps the preconditioner valid;
+/// this trades factorizations against iterations.
 pub(crate) const CONTACT_REFRESH_FRACTION: Real = 0.25;
 
 /// Coarse nodes of the union of the prolongation rows of `nodes`, sorted.
@@ -245,6 +247,8 @@ impl TwoLevel {
         if differ == 0 || (differ as Real) <= CONTACT_REFRESH_FRACTION * size as Real {
             return Ok(false);
         }
+        // A contact whose matrix is not finite (a step gone to NaN) stays out: the step reports
+        // it as not finite, and the coarse operator stays factorized.
         self.values.copy_from_slice(&self.base_values);
         let mut galerkin = Galerkin {
             prolongation: &self.prolongation,
@@ -254,7 +258,7 @@ impl TwoLevel {
             local: Vec::new(),
         };
         let (mut nodes, mut weights) = (Vec::new(), Vec::new());
-        for c in contacts {
+        for c in contacts.iter().filter(|c| c.matrix.iter().all(|m| m.is_finite())) {
             nodes.clear();
             weights.clear();
             contact::for_each_entry(points, c, |n, w| {
@@ -268,7 +272,13 @@ impl TwoLevel {
             }
             galerkin.add(&nodes, |i, j| c.matrix * (weights[i] * weights[j]), &mut self.values);
         }
-        self.cholesky.factorize(&self.values)?;
+        if let Err(error) = self.cholesky.factorize(&self.values) {
+            // Back to the operator without contacts, which factorized when the epoch began, so
+            // that a later step never meets an unfactorized coarse solve.
+            self.held.clear();
+            self.cholesky.factorize(&self.base_values)?;
+            return Err(error.into());
+        }
         std::mem::swap(&mut self.held, &mut self.current);
         self.refreshes += 1;
         Ok(true)

@@ -5,7 +5,9 @@
 mod common;
 
 use cleave_core::{Embedding, Point3, Real};
-use cleave_integrator::{Constraints, Integrator, PenaltyPins, PlaneCollider, Settings, StepErrorKind, solve_static};
+use cleave_integrator::{
+    Constraints, Integrator, PenaltyPins, PlaneCollider, Settings, StepErrorKind, SurfaceContact, solve_static,
+};
 use common::{Lcg, Springs, spring};
 use nalgebra::{DMatrix, DVector};
 
@@ -134,6 +136,27 @@ fn integrator_refuses_bad_constraints_with_named_values() {
     let pins = PenaltyPins { points: inside, targets: vec![Point3::origin(); 3], stiffness: 1e3 };
     let error = build(Constraints { penalty_pins: Some(pins), ..Default::default() }).unwrap();
     assert_eq!(error.kind, StepErrorKind::PinTargets { targets: 3, points: 1 });
+
+    // Surface contact naming a piece for some triangles only.
+    let mut points = Embedding::new();
+    for node in [0, 1, 0] {
+        points.push_row(&[node], &[1.0]);
+    }
+    let surface = SurfaceContact {
+        triangles: vec![[0, 1, 2]],
+        on_cut: Vec::new(),
+        piece: vec![0, 0],
+        stiffness: 1e3,
+        damping: 0.0,
+        friction: 0.0,
+        thickness: 0.0,
+        reach: 0.01,
+        edge_contact: false,
+    };
+    let error =
+        build(Constraints { contact_points: Some(points), surface_contact: Some(surface), ..Default::default() })
+            .unwrap();
+    assert_eq!(error.kind, StepErrorKind::SurfacePieces { pieces: 2, triangles: 1 });
 
     // The kinds are distinct from the solver's catch-all.
     assert!(!matches!(error.kind, StepErrorKind::Solver(_)));

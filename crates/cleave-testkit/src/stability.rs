@@ -254,7 +254,8 @@ fn step_failure(error: StepError) -> Verdict {
         kind @ (StepErrorKind::LoadLength { .. }
         | StepErrorKind::DofOutOfRange { .. }
         | StepErrorKind::NodeOutOfRange { .. }
-        | StepErrorKind::PinTargets { .. }) => Verdict::Error(kind.to_string()),
+        | StepErrorKind::PinTargets { .. }
+        | StepErrorKind::SurfacePieces { .. }) => Verdict::Error(kind.to_string()),
     }
 }
 

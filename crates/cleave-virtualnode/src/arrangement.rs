@@ -82,10 +82,15 @@ impl Vertex {
     }
 
     fn add_plane(&mut self, plane: u32) {
-        if !self.on(plane) && (self.num_planes as usize) < MAX_VERTEX_PLANES {
+        if self.can_take(plane) && !self.on(plane) {
             self.planes[self.num_planes as usize] = plane;
             self.num_planes += 1;
         }
+    }
+
+    /// Whether `plane` is or can be recorded (a vertex holds at most [`MAX_VERTEX_PLANES`]).
+    fn can_take(&self, plane: u32) -> bool {
+        self.on(plane) || (self.num_planes as usize) < MAX_VERTEX_PLANES
     }
 }
 
@@ -746,7 +751,12 @@ impl Arrangement {
             if face.plane == p || face.verts.iter().all(|&v| self.vertices[v as usize].on(p)) {
                 continue;
             }
-            if face.verts.iter().all(|&v| plane.distance(&self.vertices[v as usize].p).abs() <= tolerance) {
+            // Only whole faces: a face some of whose vertices could not record the plane (full)
+            // would be half on it.
+            if face.verts.iter().all(|&v| {
+                let vertex = &self.vertices[v as usize];
+                vertex.can_take(p) && plane.distance(&vertex.p).abs() <= tolerance
+            }) {
                 for &v in &face.verts {
                     self.vertices[v as usize].add_plane(p);
                 }

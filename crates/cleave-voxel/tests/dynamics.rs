@@ -224,7 +224,8 @@ fn resting_iterations() -> (Real, usize, Real) {
 
 #[test]
 fn a_block_resting_on_the_ground_needs_few_cg_iterations_with_its_contacts_in_the_coarse_operator() {
-    // The penalty terms h²k of the 144 contacts under the block are 3000 times a node's mass;
+    // The penalty terms h²k (5.6 kg) of the 169 contacts under the block are about 700 times
+    // the mass of a node on its bottom;
     // a coarse operator without them needed 16 iterations a step at rest on the voxel bunny
     // (docs/results/voxel-bench.md) and 4.8 on this block; with them 1.2.
     let (iterations, refreshes, lowest) = resting_iterations();
