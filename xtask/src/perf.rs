@@ -5,7 +5,8 @@
 //! Measured (release build, no recording): `scenes/bunny_slice.ron` (steps/s over all steps, the
 //! steps that cut and the others; contact's share of the step), `scenes/bunny_drop_voxel.ron`
 //! (steps/s, CG iterations a step), kaufmann2008 Table 1 (numeric factorization and solve of the
-//! four DG variants, median of three), and the voxel stiffness action on 10,164 cubes. Timings
+//! four DG variants, median of three), the voxel stiffness action on 10,164 cubes, and the static
+//! voxel cantilever at n = 16 (build, assembly and direct solve, as `compare` times it). Timings
 //! share the machine with whatever else runs: the row keeps the load average, and a change that
 //! claims a gain should alternate old and new builds.
 
@@ -14,14 +15,14 @@ use anyhow::{Context, Result, bail};
 use cleave_core::{Matrix3, Point3, Real, Vector3};
 use cleave_registry::backends;
 use cleave_scene::{Simulation, load_scene};
-use cleave_testkit::compare::{BoxGrid, DirichletSpec, table1_timings};
+use cleave_testkit::compare::{BoxGrid, DirichletSpec, Problem, run_problem, table1_timings};
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
 /// Columns of `perf-history.csv`, after the date, commit and load.
-const FIGURES: [(&str, bool); 11] = [
+const FIGURES: [(&str, bool); 12] = [
     // (name, larger is better)
     ("bunny_slice_steps_per_s", true),
     ("bunny_slice_cutting_steps_per_s", true),
@@ -34,6 +35,7 @@ const FIGURES: [(&str, bool); 11] = [
     ("table1_bz2_solve_ms", false),
     ("table1_ip2_solve_ms", false),
     ("voxel_stiffness_gflops", true),
+    ("voxel_cantilever_n16_s", false),
 ];
 
 /// Parsed arguments of `cargo xtask perf`.
@@ -66,6 +68,11 @@ pub fn perf(args: PerfArgs) -> Result<()> {
     }
     say("voxel stiffness action");
     figures.push(stiffness_gflops()?);
+    say("static voxel cantilever at n = 16");
+    let voxel = backends().into_iter().find(|b| b.name() == "voxel").context("the voxel backend is not registered")?;
+    let row = run_problem(voxel.as_ref(), "trilinear", Problem::Cantilever, 16)
+        .map_err(|e| anyhow::anyhow!("static cantilever: {e}"))?;
+    figures.push(row.seconds_total.unwrap_or(f64::NAN));
 
     let commit = git(&["rev-parse", "--short", "HEAD"]).unwrap_or_else(|| "unknown".into());
     // Changes to tracked files other than the history itself (which the last run edited).
