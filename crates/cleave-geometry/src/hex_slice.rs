@@ -8,7 +8,7 @@ use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
 use crate::voxelize::voxelize_on_grid;
-use crate::{GeometryError, MergeReport, PolyFace, PolyhedralMesh, TriangleMesh, merge_small_elements};
+use crate::{GeometryError, MergeReport, PolyFace, PolyhedralMesh, TriangleMesh, UnionFind, merge_small_elements};
 
 /// Largest number of grid cells (of the bounding grid) [`hex_slice`] accepts.
 pub const MAX_SLICE_CELLS: u64 = 20_000_000;
@@ -737,15 +737,14 @@ impl<'a> Slicer<'a> {
                         slot_ranges[2 * d + s] = (start, polygons.len());
                     }
                 }
-                let mut parent: Vec<usize> = (0..polygons.len()).collect();
+                let mut sets = UnionFind::new(polygons.len());
                 let mut edge_owner: HashMap<(Key, Key), usize> = HashMap::new();
                 for (pi, poly) in polygons.iter().enumerate() {
                     for k in 0..poly.len() {
                         let (a, b) = (poly[k], poly[(k + 1) % poly.len()]);
                         let edge = if a < b { (a, b) } else { (b, a) };
                         if let Some(&other) = edge_owner.get(&edge) {
-                            let (ra, rb) = (find(&mut parent, pi), find(&mut parent, other));
-                            parent[ra.max(rb)] = ra.min(rb);
+                            sets.union(pi, other);
                         } else {
                             edge_owner.insert(edge, pi);
                         }
@@ -755,7 +754,7 @@ impl<'a> Slicer<'a> {
                 let mut components = 0;
                 let mut component = vec![0; polygons.len()];
                 for pi in 0..polygons.len() {
-                    let r = find(&mut parent, pi);
+                    let r = sets.find(pi);
                     if label[r] == usize::MAX {
                         label[r] = components;
                         components += 1;
@@ -934,13 +933,4 @@ fn ear_clip(mut poly: Vec<(Key, Pt)>) -> Option<Vec<KeyPolygon>> {
     }
     out.push(poly.iter().map(|v| v.0).collect());
     Some(out)
-}
-
-/// Union–find root with path halving.
-fn find(parent: &mut [usize], mut i: usize) -> usize {
-    while parent[i] != i {
-        parent[i] = parent[parent[i]];
-        i = parent[i];
-    }
-    i
 }

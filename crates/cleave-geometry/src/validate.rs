@@ -77,17 +77,17 @@ impl TriangleMesh {
         }
 
         // Connected components by union-find over vertices.
-        let mut parent: Vec<u32> = (0..n as u32).collect();
+        let mut sets = crate::UnionFind::new(n);
         let mut referenced = vec![false; n];
         for tri in &self.triangles {
             for &i in tri {
                 referenced[i as usize] = true;
             }
-            union(&mut parent, tri[0], tri[1]);
-            union(&mut parent, tri[1], tri[2]);
+            sets.union(tri[0] as usize, tri[1] as usize);
+            sets.union(tri[1] as usize, tri[2] as usize);
         }
         let vertices = referenced.iter().filter(|&&r| r).count();
-        let components = (0..n as u32).filter(|&i| referenced[i as usize] && find(&mut parent, i) == i).count();
+        let components = (0..n).filter(|&i| referenced[i] && sets.find(i) == i).count();
 
         Ok(MeshStats { vertices, triangles: self.triangles.len(), edges, volume, area: self.area(), components })
     }
@@ -141,21 +141,5 @@ impl TriangleMesh {
             Some((_, error)) => Err(error),
             None => Ok(edge_count),
         }
-    }
-}
-
-fn find(parent: &mut [u32], mut i: u32) -> u32 {
-    while parent[i as usize] != i {
-        let grand = parent[parent[i as usize] as usize];
-        parent[i as usize] = grand;
-        i = grand;
-    }
-    i
-}
-
-fn union(parent: &mut [u32], a: u32, b: u32) {
-    let (ra, rb) = (find(parent, a), find(parent, b));
-    if ra != rb {
-        parent[ra.max(rb) as usize] = ra.min(rb);
     }
 }

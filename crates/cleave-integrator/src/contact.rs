@@ -516,18 +516,10 @@ impl ContactSet {
         let mut set = ContactSet::default();
         if let (Some(points), Some(surface)) = (&constraints.contact_points, &constraints.surface_contact) {
             set.rest = (0..points.len()).map(|i| points.point(rest_dofs, i)).collect();
-            let mut parent: Vec<u32> = (0..points.len() as u32).collect();
-            fn find(parent: &mut [u32], mut i: u32) -> u32 {
-                while parent[i as usize] != i {
-                    parent[i as usize] = parent[parent[i as usize] as usize];
-                    i = parent[i as usize];
-                }
-                i
-            }
+            let mut sets = cleave_geometry::UnionFind::new(points.len());
             for t in &surface.triangles {
-                let (a, b, c) = (find(&mut parent, t[0]), find(&mut parent, t[1]), find(&mut parent, t[2]));
-                parent[b as usize] = a;
-                parent[c as usize] = a;
+                sets.union(t[0] as usize, t[1] as usize);
+                sets.union(t[0] as usize, t[2] as usize);
             }
             // The parts of one piece's surface are one component: a sheet a crack left inside a
             // piece lies inside the rest of its surface, which is not a contact (`SurfaceContact::piece`).
@@ -540,11 +532,10 @@ impl ContactSet {
                     if *first == u32::MAX {
                         *first = t[0];
                     }
-                    let (a, b) = (find(&mut parent, *first), find(&mut parent, t[0]));
-                    parent[b as usize] = a;
+                    sets.union(*first as usize, t[0] as usize);
                 }
             }
-            let roots: Vec<u32> = (0..points.len() as u32).map(|i| find(&mut parent, i)).collect();
+            let roots: Vec<u32> = (0..points.len()).map(|i| sets.find(i) as u32).collect();
             let mut compact = vec![u32::MAX; points.len()];
             let mut count = 0;
             set.component = roots

@@ -60,22 +60,11 @@ impl FreePieces {
     /// of anchored blocks (DG's weak Dirichlet faces, forces from the world) are held too.
     pub(crate) fn new(discretization: &dyn Discretization, fixed_nodes: impl Iterator<Item = usize>) -> Self {
         let nodes = discretization.num_nodes();
-        let mut parent: Vec<u32> = (0..nodes as u32).collect();
-        fn root(parent: &mut [u32], mut a: u32) -> u32 {
-            while parent[a as usize] != a {
-                parent[a as usize] = parent[parent[a as usize] as usize];
-                a = parent[a as usize];
-            }
-            a
-        }
+        let mut sets = cleave_geometry::UnionFind::new(nodes);
         for group in discretization.blocks().node_groups() {
             let Some((&first, rest)) = group.split_first() else { continue };
-            let a = root(&mut parent, first);
             for &b in rest {
-                let b = root(&mut parent, b);
-                if a != b {
-                    parent[b as usize] = a;
-                }
+                sets.union(first as usize, b as usize);
             }
         }
         let mut fixed_root = vec![false; nodes];
@@ -83,15 +72,14 @@ impl FreePieces {
         let anchored = (0..blocks.len()).map(|b| blocks.block(b)).filter(|b| b.anchor.is_some());
         let anchored_nodes: Vec<usize> = anchored.flat_map(|b| b.nodes.iter().map(|&n| n as usize)).collect();
         for node in fixed_nodes.chain(anchored_nodes) {
-            let r = root(&mut parent, node as u32);
-            fixed_root[r as usize] = true;
+            fixed_root[sets.find(node)] = true;
         }
         let mut index_of_root = vec![u32::MAX; nodes];
         let mut count = 0;
         let mut piece_of_node = vec![u32::MAX; nodes];
         let mut reference = Vec::new();
         for node in 0..nodes {
-            let r = root(&mut parent, node as u32) as usize;
+            let r = sets.find(node);
             if fixed_root[r] {
                 continue;
             }

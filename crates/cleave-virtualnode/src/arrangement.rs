@@ -32,6 +32,7 @@ use crate::FastMap;
 use crate::predicates::{
     convex_overlap_area, dominant_axis, largest_component, project, side3, triangle_is_degenerate,
 };
+use cleave_geometry::UnionFind;
 use nalgebra::{Point2, Point3, Vector3};
 
 /// Relative area (of the squared edge length of the tetrahedron) below which two coplanar face
@@ -809,14 +810,7 @@ impl Arrangement {
     /// Returns `(cells of the region, volume)` per region.
     pub fn regions(&self) -> Vec<(Vec<usize>, f64)> {
         let n = self.cells.len();
-        let mut parent: Vec<usize> = (0..n).collect();
-        fn find(parent: &mut [usize], mut i: usize) -> usize {
-            while parent[i] != i {
-                parent[i] = parent[parent[i]];
-                i = parent[i];
-            }
-            i
-        }
+        let mut sets = UnionFind::new(n);
         // Open interior faces grouped by plane.
         let mut groups: FastMap<u32, Vec<(usize, usize)>> = FastMap::default();
         for (c, cell) in self.cells.iter().enumerate() {
@@ -853,7 +847,7 @@ impl Arrangement {
                     continue;
                 }
                 for b in &polys[..] {
-                    if b.1 || find(&mut parent, a.0) == find(&mut parent, b.0) {
+                    if b.1 || sets.find(a.0) == sets.find(b.0) {
                         continue;
                     }
                     let (ba, bb) = (a.3, b.3);
@@ -861,8 +855,7 @@ impl Arrangement {
                         continue;
                     }
                     if convex_overlap_area(&a.2, &b.2, &mut scratch) > threshold {
-                        let (ra, rb) = (find(&mut parent, a.0), find(&mut parent, b.0));
-                        parent[ra] = rb;
+                        sets.union(a.0, b.0);
                     }
                 }
             }
@@ -870,7 +863,7 @@ impl Arrangement {
         let mut index: FastMap<usize, usize> = FastMap::default();
         let mut regions: Vec<(Vec<usize>, f64)> = Vec::new();
         for c in 0..n {
-            let r = find(&mut parent, c);
+            let r = sets.find(c);
             let k = *index.entry(r).or_insert_with(|| {
                 regions.push((Vec::new(), 0.0));
                 regions.len() - 1
