@@ -43,6 +43,9 @@ pub(crate) struct TwoLevel {
     current: Vec<(u8, u32)>,
     /// Times `A_c` was factorized again for contacts (for the step reports).
     refreshes: usize,
+    /// Buffers of the Galerkin terms and of one contact's (node, weight) entries.
+    scratch: GalerkinScratch,
+    entries: (Vec<u32>, Vec<Real>),
 }
 
 /// How many contacts may have joined or left since `A_c` took its contacts (the symmetric
@@ -67,16 +70,35 @@ struct Galerkin<'a> {
     prolongation: &'a Embedding,
     pinned: &'a [bool],
     pattern: &'a AssemblyPattern,
+    scratch: &'a mut GalerkinScratch,
+}
+
+/// Buffers of [`Galerkin::add`], kept across calls (and across the refreshes of `A_c`).
+#[derive(Default)]
+struct GalerkinScratch {
     union: Vec<u32>,
+    ranks: Vec<u32>,
     local: Vec<Matrix3<Real>>,
 }
 
 impl Galerkin<'_> {
-    fn add(&mut self, nodes: &[u32], k: impl Fn(usize, usize) -> Matrix3<Real>, values: &mut [Real]) {
-        coarse_union(self.prolongation, nodes, &mut self.union);
-        let m = self.union.len();
-        self.local.clear();
-        self.local.resize(m * m, Matrix3::zeros());
+    /// Adds the term, or returns `false` (adding nothing) when the coarse pattern does not
+    /// couple every pair of its coarse nodes.
+    fn add(&mut self, nodes: &[u32], k: impl Fn(usize, usize) -> Matrix3<Real>, values: &mut [Real]) -> bool {
+        let GalerkinScratch { union, ranks, local } = &mut *self.scratch;
+        coarse_union(self.prolongation, nodes, union);
+        let m = union.len();
+        ranks.clear();
+        for &cj in union.iter() {
+            for &ci in union.iter() {
+                match self.pattern.rank(ci, cj) {
+                    Some(rank) => ranks.push(rank),
+                    None => return false,
+                }
+            }
+        }
+        local.clear();
+        local.resize(m * m, Matrix3::zeros());
         let position = |union: &[u32], c: u32| union.binary_search(&c).expect("the union holds every row's nodes");
         for (i, &ni) in nodes.iter().enumerate() {
             for (j, &nj) in nodes.iter().enumerate() {
@@ -92,20 +114,20 @@ impl Galerkin<'_> {
                 let (ci, wi) = self.prolongation.row(ni as usize);
                 let (cj, wj) = self.prolongation.row(nj as usize);
                 for (&ci, &wi) in ci.iter().zip(wi) {
-                    let row = position(&self.union, ci);
+                    let row = position(union, ci);
                     for (&cj, &wj) in cj.iter().zip(wj) {
-                        let col = position(&self.union, cj);
-                        self.local[row * m + col] += kij * (wi * wj);
+                        let col = position(union, cj);
+                        local[row * m + col] += kij * (wi * wj);
                     }
                 }
             }
         }
-        for (col, &cj) in self.union.iter().enumerate() {
-            for (row, &ci) in self.union.iter().enumerate() {
-                let rank = self.pattern.rank(ci, cj).expect("the coarse pattern holds every term's union");
-                self.pattern.add_block(values, rank, cj, &self.local[row * m + col], 1.0);
+        for (col, &cj) in union.iter().enumerate() {
+            for row in 0..m {
+                self.pattern.add_block(values, ranks[col * m + row], cj, &local[row * m + col], 1.0);
             }
         }
+        true
     }
 }
 
@@ -147,21 +169,21 @@ impl TwoLevel {
         let pattern = AssemblyPattern::from_groups(num_coarse, groups.iter().map(Vec::as_slice));
         drop(groups);
         let mut values = pattern.new_values();
-        let mut galerkin =
-            Galerkin { prolongation: &prolongation, pinned, pattern: &pattern, union, local: Vec::new() };
+        let mut scratch = GalerkinScratch { union, ..Default::default() };
+        let mut galerkin = Galerkin { prolongation: &prolongation, pinned, pattern: &pattern, scratch: &mut scratch };
         for b in 0..blocks.len() {
             let block = blocks.block(b);
             // Rotations at identity: the rest matrix itself.
             let k = |i: usize, j: usize| -> Matrix3<Real> {
                 block.rest.fixed_view::<3, 3>(3 * i, 3 * j).into_owned() * stiffness_scale
             };
-            galerkin.add(block.nodes, k, &mut values);
+            assert!(galerkin.add(block.nodes, k, &mut values), "the coarse pattern holds every block's union");
         }
         if let Some(pins) = penalty_pins {
             for i in 0..pins.points.len() {
                 let (nodes, weights) = pins.points.row(i);
                 let k = |a: usize, b: usize| Matrix3::identity() * (h * h * pins.stiffness * weights[a] * weights[b]);
-                galerkin.add(nodes, k, &mut values);
+                assert!(galerkin.add(nodes, k, &mut values), "the coarse pattern holds every pin's union");
             }
         }
         let mass = discretization.mass().diagonal();
@@ -222,6 +244,8 @@ impl TwoLevel {
             held: Vec::new(),
             current: Vec::new(),
             refreshes: 0,
+            scratch,
+            entries: (Vec::new(), Vec::new()),
         })
     }
 
@@ -254,10 +278,9 @@ impl TwoLevel {
             prolongation: &self.prolongation,
             pinned: &self.pinned,
             pattern: &self.pattern,
-            union: Vec::new(),
-            local: Vec::new(),
+            scratch: &mut self.scratch,
         };
-        let (mut nodes, mut weights) = (Vec::new(), Vec::new());
+        let (nodes, weights) = &mut self.entries;
         for c in contacts.iter().filter(|c| c.matrix.iter().all(|m| m.is_finite())) {
             nodes.clear();
             weights.clear();
@@ -265,12 +288,8 @@ impl TwoLevel {
                 nodes.push(n);
                 weights.push(w);
             });
-            coarse_union(galerkin.prolongation, &nodes, &mut galerkin.union);
-            let union = &galerkin.union;
-            if !union.iter().all(|&a| union.iter().all(|&b| galerkin.pattern.rank(a, b).is_some())) {
-                continue;
-            }
-            galerkin.add(&nodes, |i, j| c.matrix * (weights[i] * weights[j]), &mut self.values);
+            // A term the coarse pattern does not couple is left out (`add` returns false).
+            galerkin.add(nodes, |i, j| c.matrix * (weights[i] * weights[j]), &mut self.values);
         }
         if let Err(error) = self.cholesky.factorize(&self.values) {
             // Back to the operator without contacts, which factorized when the epoch began, so
