@@ -67,7 +67,7 @@ impl Row {
         Row { points: [a[0], a[1], b[0], b[1]], weights: [1.0 - s, s, t - 1.0, -t], len: 4 }
     }
 
-    fn entries(&self) -> impl Iterator<Item = (u32, Real)> + '_ {
+    pub(crate) fn entries(&self) -> impl Iterator<Item = (u32, Real)> + '_ {
         self.points.iter().copied().zip(self.weights.iter().copied()).take(self.len as usize)
     }
 }

@@ -14,6 +14,7 @@ use crate::contact::{self, ContactSet, ContactStats};
 use crate::error::{StepError, StepErrorKind};
 use crate::low_rank::{self, LowRankUpdate};
 use crate::momentum::FreePieces;
+use crate::pieces::PiecePreconditioner;
 use crate::system::AssembledSystem;
 use crate::two_level::TwoLevel;
 use cleave_core::{Discretization, Embedding, Matrix3, Point3, Real, TopologyChange, Vector3};
@@ -49,6 +50,13 @@ pub enum Preconditioner {
     /// (its factor grows faster than linearly), else `BlockJacobi`.
     #[default]
     Auto,
+    /// For bodies cut into many pieces: the Cholesky factor of the step matrix without the
+    /// couplings contacts make between nodes (block diagonal by piece, contacts lumped by
+    /// surface point) plus a coarse space of the pieces' rigid motions with the contacts between
+    /// them (docs/math/corotated-integrator.md, "Piecewise preconditioner"). Its cost grows with
+    /// the pieces' sizes and the contacts, not with the fill that contacts knit between pieces
+    /// in one factorization of everything.
+    Pieces,
 }
 
 /// Largest coarse space `Preconditioner::Auto` factorizes: the 2h space of the 10k-cube bunny
@@ -267,6 +275,8 @@ pub struct Integrator {
     divergence_limit: Real,
     system: Option<AssembledSystem>,
     two_level: Option<TwoLevel>,
+    /// The piecewise preconditioner ([`Preconditioner::Pieces`]) of this epoch.
+    pieces: Option<PiecePreconditioner>,
     work: Workspace,
     last_inverted: usize,
     /// Times the pattern grew for new surface contacts (whole run).
@@ -305,6 +315,7 @@ impl Integrator {
             divergence_limit: 0.0,
             system: None,
             two_level: None,
+            pieces: None,
             work: Workspace::default(),
             last_inverted: 0,
             pattern_growths: 0,
@@ -373,8 +384,14 @@ impl Integrator {
             None
         };
         self.two_level = None;
-        let wants_two_level = matches!(self.settings.solver, Solver::ConjugateGradient { .. })
-            && self.settings.preconditioner != Preconditioner::BlockJacobi;
+        let cg = matches!(self.settings.solver, Solver::ConjugateGradient { .. });
+        self.pieces = if cg && self.settings.preconditioner == Preconditioner::Pieces {
+            Some(PiecePreconditioner::new(discretization, &self.constraints, &self.pinned)?)
+        } else {
+            None
+        };
+        let wants_two_level =
+            cg && !matches!(self.settings.preconditioner, Preconditioner::BlockJacobi | Preconditioner::Pieces);
         if wants_two_level {
             let space = discretization.coarse_space().filter(|space| {
                 self.settings.preconditioner == Preconditioner::TwoLevel || 3 * space.num_nodes <= AUTO_COARSE_DOFS
@@ -670,6 +687,7 @@ impl Integrator {
         let mut iterations = 0;
         let mut built_with_contacts = false;
         let mut rotations_refreshed = false;
+        let mut pieces_prepared = false;
         self.work.trial_inverted = None;
         if self.assembly_pending {
             let mut pattern = AssembledSystem::base_pattern(discretization, &self.constraints);
@@ -747,7 +765,26 @@ impl Integrator {
                     (1, 0.0)
                 }
                 Solver::ConjugateGradient { tolerance, max_iterations, .. } => {
-                    self.build_preconditioner(discretization, mass_scale, stiffness_scale, h);
+                    // The piecewise factors are those of the step's first pass (and of its second
+                    // rotations): pairs that join in a later pass are in CG's operator, and any
+                    // positive definite preconditioner keeps CG valid.
+                    if let Some(pieces) = self.pieces.as_mut().filter(|_| !pieces_prepared) {
+                        pieces_prepared = true;
+                        let contacts = &self.work.contacts.contacts;
+                        let (constraints, rotations, x) = (&self.constraints, &self.rotations, &self.x);
+                        pieces.prepare(
+                            discretization,
+                            constraints,
+                            rotations,
+                            x,
+                            contacts,
+                            mass_scale,
+                            stiffness_scale,
+                            h,
+                        )?;
+                    } else if self.pieces.is_none() {
+                        self.build_preconditioner(discretization, mass_scale, stiffness_scale, h);
+                    }
                     if let (Some(two_level), Some(points)) =
                         (self.two_level.as_mut(), self.constraints.contact_points.as_ref())
                     {
@@ -766,14 +803,23 @@ impl Integrator {
                     let system = &self.system;
                     let preconditioner = &self.work.preconditioner;
                     let mut two_level = self.two_level.as_mut();
+                    let (pieces_operator, mut pieces_correction) = match self.pieces.as_mut() {
+                        Some(pieces) => {
+                            let (operator, correction) = pieces.split();
+                            (Some(operator), Some(correction))
+                        }
+                        None => (None, None),
+                    };
+                    let x = &self.x;
                     // One step's external impulse `h ‖f_ext‖` floors the residual scale (see cg.rs).
                     let load_scale = h * self.external_force.iter().map(|f| f * f).sum::<Real>().sqrt();
                     let outcome = self.work.cg.solve(
-                        |p, out| match system {
-                            Some(s) => {
+                        |p, out| match (&pieces_operator, system) {
+                            (Some(operator), _) => operator.multiply(contact_points, contacts, pinned, p, out),
+                            (None, Some(s)) => {
                                 s.pattern.mul_vec(&s.values, p, out);
                             }
-                            None => {
+                            (None, None) => {
                                 mass.apply(p, out);
                                 if mass_scale != 1.0 {
                                     out.iter_mut().for_each(|o| *o *= mass_scale);
@@ -791,6 +837,10 @@ impl Integrator {
                             }
                         },
                         |r, z| {
+                            if let Some(correction) = pieces_correction.as_mut() {
+                                correction.apply(x, r, z);
+                                return;
+                            }
                             z.par_chunks_mut(3).zip(r.par_chunks(3)).zip(preconditioner).for_each(|((z, r), m)| {
                                 let y = m * Vector3::new(r[0], r[1], r[2]);
                                 z.copy_from_slice(y.as_slice());
@@ -861,6 +911,7 @@ impl Integrator {
             if finished {
                 if !rotations_refreshed && self.refresh_rotations(discretization, h, &mut seconds) {
                     rotations_refreshed = true;
+                    pieces_prepared = false;
                     assembly_clock = Instant::now();
                     continue;
                 }

@@ -10,6 +10,7 @@ mod error;
 mod integrator;
 mod low_rank;
 mod momentum;
+mod pieces;
 mod statics;
 mod system;
 mod two_level;

@@ -2,15 +2,16 @@
 
 use crate::record::{RecordError, Recorder};
 use crate::schema::{
-    ColliderSpec, ContactSpec, CutSpec, EventSpec, Object, PinSpec, Positive, Scene, SolverSpec, Transform,
+    ColliderSpec, ContactSpec, CutSpec, EventSpec, Object, PinSpec, Positive, PreconditionerSpec, Scene, SolverSpec,
+    Transform,
 };
 use cleave_core::{
     CutSurface, Discretization, EmbeddedSurface, Embedding, Piece, Point3, Real, TopologyChange, TopologyError, Vector3,
 };
 use cleave_geometry::{Blade, Keyframe, TriangleMesh};
 use cleave_integrator::{
-    Constraints, Integrator, MeshCollider, PlaneCollider, PreparedContact, Settings, Solver, StepError, StepReport,
-    SurfaceContact,
+    Constraints, Integrator, MeshCollider, PlaneCollider, Preconditioner, PreparedContact, Settings, Solver, StepError,
+    StepReport, SurfaceContact,
 };
 use cleave_registry::{Backend, BackendError, Region, Shape, SolidRequest};
 use nalgebra::{Rotation3, UnitQuaternion};
@@ -467,10 +468,18 @@ impl Simulation {
         settings.rotation_refresh_angle = scene.rotation_refresh_angle.map(|a| a.0);
         settings.solver = match scene.solver {
             SolverSpec::Cholesky => Solver::Cholesky,
-            SolverSpec::ConjugateGradient { tolerance, max_iterations, assembled } => {
+            SolverSpec::ConjugateGradient { tolerance, max_iterations, assembled, .. } => {
                 Solver::ConjugateGradient { tolerance: tolerance.0, max_iterations, assembled }
             }
         };
+        if let SolverSpec::ConjugateGradient { preconditioner, .. } = scene.solver {
+            settings.preconditioner = match preconditioner {
+                PreconditionerSpec::Auto => Preconditioner::Auto,
+                PreconditionerSpec::BlockJacobi => Preconditioner::BlockJacobi,
+                PreconditionerSpec::TwoLevel => Preconditioner::TwoLevel,
+                PreconditionerSpec::Pieces => Preconditioner::Pieces,
+            };
+        }
         let plane_colliders: Vec<_> = constraints.planes.iter().map(|p| (p.point, p.normal)).collect();
         let integrator = Integrator::new(discretization.as_ref(), settings, constraints)
             .map_err(|source| SceneError::Step { path: path.clone(), source })?;

@@ -179,7 +179,26 @@ pub enum SolverSpec {
         /// assembled (`true`) or matrix-free (default)
         #[serde(default)]
         assembled: bool,
+        /// preconditioner (default `Auto`)
+        #[serde(default)]
+        preconditioner: PreconditionerSpec,
     },
+}
+
+/// Preconditioner of the CG solver (`cleave_integrator::Preconditioner`).
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub enum PreconditionerSpec {
+    /// Two-level where the backend offers a small enough coarse space, else block-Jacobi.
+    #[default]
+    Auto,
+    /// Inverse 3×3 diagonal node blocks.
+    BlockJacobi,
+    /// Block-Jacobi plus the backend's coarse space.
+    TwoLevel,
+    /// Cholesky of each piece without the contacts between pieces, plus the pieces' rigid
+    /// motions with them: for bodies cut into many pieces.
+    Pieces,
 }
 
 fn default_tolerance() -> Positive {
@@ -196,6 +215,7 @@ impl Default for SolverSpec {
             tolerance: default_tolerance(),
             max_iterations: default_iterations(),
             assembled: false,
+            preconditioner: PreconditionerSpec::Auto,
         }
     }
 }
