@@ -11,6 +11,7 @@ mod raster;
 mod recording;
 mod render;
 mod stability;
+mod tidy;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
@@ -134,6 +135,9 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// Check the invariants of docs/architecture.md the compiler does not: which crate may
+    /// depend on which, no terminal or file I/O in library code, a `//!` line atop every file.
+    Tidy,
 }
 
 /// The command as typed (for the reports), without the binary path.
@@ -196,6 +200,19 @@ fn main() {
             }
         }
         Command::Perf { history, quiet } => perf::perf(perf::PerfArgs { history, quiet }),
+        Command::Tidy => {
+            let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+            let violations = tidy::check(&root);
+            for v in &violations {
+                println!("{v}");
+            }
+            if violations.is_empty() {
+                println!("tidy: no violations");
+                Ok(())
+            } else {
+                Err(anyhow::anyhow!("tidy: {} violations", violations.len()))
+            }
+        }
         Command::Stability { quick, backend, out, quiet } => stability::stability(stability::StabilityArgs {
             quick,
             backends: backend,
