@@ -21,10 +21,15 @@
 //!   [`PolyhedralMesh::validate`] (module `poly_validate`) returning [`PolyMeshStats`].
 //! - [`element_moments`] / [`face_moments`] (module `moments`): exact monomial integrals over
 //!   (non-convex) polyhedra and polygons by the divergence theorem.
+//! - [`arrangement::Arrangement`]: a convex region (a tetrahedron today) as convex cells split
+//!   by cut triangles and planes with exact side-of-plane decisions ([`predicates`], on
+//!   `robust`), and its material regions: the splitting every polyhedral backend cuts with
+//!   (virtual node's duplicates; mean value's elements next).
 //!
 //! The library performs no file or terminal I/O and reports bad input as
 //! [`GeometryError`] values naming the offending triangle, edge, vertex or OBJ line.
 
+pub mod arrangement;
 mod blade;
 mod closest;
 mod error;
@@ -37,6 +42,7 @@ mod obj;
 mod overlap;
 mod poly_validate;
 mod polyhedral;
+pub mod predicates;
 mod slivers;
 mod union_find;
 mod validate;
@@ -64,3 +70,6 @@ pub use slivers::{SliverRepair, repair_slivers};
 pub use union_find::UnionFind;
 pub use validate::{DEGENERATE_RATIO, MeshStats};
 pub use voxelize::{CELL_TOLERANCE, MAX_GRID_CELLS, VoxelGrid, voxelize};
+
+/// A hash map with a fast fixed-seed hasher, for integer and float-bit keys.
+pub(crate) type FastMap<K, V> = std::collections::HashMap<K, V, foldhash::fast::FixedState>;

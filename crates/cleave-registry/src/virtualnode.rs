@@ -14,7 +14,7 @@ use cleave_testkit::compare::{
     BoxGrid, BuildError, BuiltProblem, CompareBackend, CutError, CutProblem, DirichletSpec, ExtremeCase, NotApplicable,
     corner_pushed_in, stretch_start,
 };
-use cleave_virtualnode::arrangement::Cover;
+use cleave_geometry::arrangement::Cover;
 use cleave_virtualnode::{VirtualNodeMesh, box_surface};
 
 /// Registration of `cleave-virtualnode`: one variant, corotated linear tetrahedra on a BCC lattice.

@@ -4,8 +4,9 @@
 //! tests measured.
 //!
 //! - [`lattice`]: the body-centred cubic tetrahedral lattice.
-//! - [`arrangement`]: the convex cells of one tetrahedron's material, split by cut triangles
-//!   with exact side decisions, and its material regions.
+//! - `cleave_geometry::arrangement` (shared with the other polyhedral backends): the convex
+//!   cells of one tetrahedron's material, split by cut triangles with exact side decisions, and
+//!   its material regions.
 //! - [`mesh`]: [`VirtualNodeMesh`], carving a closed surface out of the lattice, one duplicate
 //!   per region, node copies identified across contiguous faces, the `Discretization` and
 //!   `Cuttable` implementations.
@@ -21,10 +22,8 @@
 //! assert_eq!(block.pieces().len(), 2);
 //! ```
 
-pub mod arrangement;
 pub mod lattice;
 pub mod mesh;
-pub mod predicates;
 pub mod surface;
 pub mod tet;
 

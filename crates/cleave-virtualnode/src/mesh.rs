@@ -4,9 +4,9 @@
 //! triangle soups.
 
 use crate::FastMap;
-use crate::arrangement::{Arrangement, Cover, OVERLAP_TOLERANCE, TET_FACES};
+use cleave_geometry::arrangement::{Arrangement, Cover, OVERLAP_TOLERANCE, TET_FACES};
 use crate::lattice::{BccLattice, LatticeTetCorners, number_nodes};
-use crate::predicates::{convex_overlap_area, largest_component, project};
+use cleave_geometry::predicates::{convex_overlap_area, largest_component, project};
 use crate::tet::{TetRule, TetShape};
 use cleave_core::rotation::extract_rotation;
 use cleave_core::{
@@ -1128,7 +1128,7 @@ fn contiguous(
     scratch: &mut (Vec<Point2<Real>>, Vec<Point2<Real>>),
 ) -> bool {
     let any_area =
-        |pieces: &[Vec<Point2<Real>>]| pieces.iter().any(|p| crate::predicates::polygon_area_2d(p).abs() > threshold);
+        |pieces: &[Vec<Point2<Real>>]| pieces.iter().any(|p| cleave_geometry::predicates::polygon_area_2d(p).abs() > threshold);
     match (a, b) {
         (FacePieces::Whole, FacePieces::Whole) => true,
         (FacePieces::Whole, FacePieces::Pieces(p)) | (FacePieces::Pieces(p), FacePieces::Whole) => any_area(p),

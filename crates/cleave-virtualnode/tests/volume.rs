@@ -3,7 +3,7 @@
 
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real, Vector3};
 use cleave_virtualnode::VirtualNodeMesh;
-use cleave_virtualnode::arrangement::{Arrangement, Cover};
+use cleave_geometry::arrangement::{Arrangement, Cover};
 
 fn material() -> Material {
     Material::new(1e5, 0.3, 1234.0).unwrap()

@@ -32,7 +32,7 @@ use crate::FastMap;
 use crate::predicates::{
     convex_overlap_area, dominant_axis, largest_component, project, side3, triangle_is_degenerate,
 };
-use cleave_geometry::UnionFind;
+use crate::UnionFind;
 use nalgebra::{Point2, Point3, Vector3};
 
 /// Relative area (of the squared edge length of the tetrahedron) below which two coplanar face
