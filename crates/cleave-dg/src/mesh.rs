@@ -491,7 +491,7 @@ impl DgMesh {
             if relative > 1.0 + 1e-9 {
                 continue;
             }
-            let w = winding_number(&self.element_polygons(e), p);
+            let w = cleave_geometry::polygon_winding_number(self.element_polygons(e).iter().map(Vec::as_slice), p);
             if w > 0.99 {
                 return Some(e);
             }
@@ -510,24 +510,6 @@ fn unit(a: usize) -> [u32; 3] {
     let mut e = [0; 3];
     e[a] = 1;
     e
-}
-
-/// Generalized winding number of closed outward polygon loops around `p` (fan triangles).
-fn winding_number(faces: &[Vec<Point3<Real>>], p: &Point3<Real>) -> Real {
-    let mut total = 0.0;
-    for face in faces {
-        for k in 1..face.len().saturating_sub(1) {
-            let (a, b, c) = (face[0] - p, face[k] - p, face[k + 1] - p);
-            let (la, lb, lc) = (a.norm(), b.norm(), c.norm());
-            if la < 1e-300 || lb < 1e-300 || lc < 1e-300 {
-                return 1.0;
-            }
-            let numerator = a.dot(&b.cross(&c));
-            let denominator = la * lb * lc + a.dot(&b) * lc + b.dot(&c) * la + c.dot(&a) * lb;
-            total += 2.0 * numerator.atan2(denominator);
-        }
-    }
-    total / (4.0 * std::f64::consts::PI)
 }
 
 /// Element stiffness `K_K[(i,a),(j,b)] = ∫ λ ∂_aψ_i ∂_bψ_j + μ (δ_ab ∇ψ_i·∇ψ_j + ∂_bψ_i ∂_aψ_j)`.

@@ -104,12 +104,9 @@ fn cantilever_tip(flux: Flux, degree: usize, n: usize) -> Real {
 /// 3.767 m omits shear and the clamp, and BZ p = 2 extrapolates to −4.1336 m, 5 % away.
 const CONSISTENT_LIMIT: Real = -3.930;
 
-/// λ of the clamped-edge singularity at ν = 0.3 (benchmarks.md §2): tips converge like h^(2λ).
-const LAMBDA: Real = 0.711;
-
-/// Richardson extrapolation of levels n and 2n converging like h^(2λ).
+/// Richardson extrapolation of levels n and 2n converging like h^(2λ) (the clamped edge's λ).
 fn extrapolate(coarse: Real, fine: Real) -> Real {
-    fine + (fine - coarse) / (2f64.powf(2.0 * LAMBDA) - 1.0)
+    cleave_testkit::compare::richardson(coarse, fine, 2.0, 2.0 * cleave_testkit::compare::CANTILEVER_LAMBDA)
 }
 
 /// Tips of one method at its levels, checked against the values measured when this test was

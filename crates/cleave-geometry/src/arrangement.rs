@@ -29,10 +29,10 @@
 //! [`OVERLAP_TOLERANCE`] times the tetrahedron's squared edge (floating point).
 
 use crate::FastMap;
+use crate::UnionFind;
 use crate::predicates::{
     convex_overlap_area, dominant_axis, largest_component, project, side3, triangle_is_degenerate,
 };
-use crate::UnionFind;
 use nalgebra::{Point2, Point3, Vector3};
 
 /// Relative area (of the squared edge length of the tetrahedron) below which two coplanar face

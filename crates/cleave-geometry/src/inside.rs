@@ -17,6 +17,24 @@ fn solid_angle(a: nalgebra::Vector3<f64>, b: nalgebra::Vector3<f64>, c: nalgebra
     2.0 * num.atan2(den)
 }
 
+/// Generalized winding number of `p` with respect to closed, outward polygon loops (a
+/// polyhedron's faces, each fanned from its first vertex): 1 inside, 0 outside (up to
+/// rounding). On a face the solid angle of the fan triangle holding the point is ±2π by the sign
+/// of a zero, so the number is 0 or 1 there; a point at a polygon's vertex counts as inside (1).
+pub fn polygon_winding_number<'a>(faces: impl IntoIterator<Item = &'a [Point3<f64>]>, p: &Point3<f64>) -> f64 {
+    let mut total = 0.0;
+    for face in faces {
+        for k in 1..face.len().saturating_sub(1) {
+            let (a, b, c) = (face[0] - p, face[k] - p, face[k + 1] - p);
+            if a.norm() < 1e-300 || b.norm() < 1e-300 || c.norm() < 1e-300 {
+                return 1.0;
+            }
+            total += solid_angle(a, b, c);
+        }
+    }
+    total / (4.0 * std::f64::consts::PI)
+}
+
 impl TriangleMesh {
     /// Generalized winding number of `p`: the sum of the signed solid angles of all
     /// triangles seen from `p`, divided by 4π.
@@ -69,5 +87,28 @@ impl InsideTester {
             return false;
         }
         self.trimesh.contains_local_point(Vector::new(p.x, p.y, p.z))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_polygon_winding_number_of_a_cube_is_one_inside_and_zero_outside() {
+        // The unit cube's six outward quads; the solid angles sum to 4π seen from inside.
+        let corner = |i: usize| Point3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64);
+        let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+        let faces: Vec<Vec<Point3<f64>>> = quads.iter().map(|q| q.iter().map(|&i| corner(i)).collect()).collect();
+        let w = |p: Point3<f64>| polygon_winding_number(faces.iter().map(Vec::as_slice), &p);
+        assert!((w(Point3::new(0.3, 0.6, 0.2)) - 1.0).abs() < 1e-12);
+        assert!(w(Point3::new(1.7, 0.5, 0.5)).abs() < 1e-12);
+        let on_face = w(Point3::new(0.5, 0.4, 1.0));
+        assert!(on_face.abs() < 1e-12 || (on_face - 1.0).abs() < 1e-12, "{on_face}");
+        assert_eq!(w(corner(7)), 1.0, "a vertex counts as inside");
+        // Reversed loops (inward) give −1 inside.
+        let inward: Vec<Vec<Point3<f64>>> = faces.iter().map(|f| f.iter().rev().copied().collect()).collect();
+        let inside = polygon_winding_number(inward.iter().map(Vec::as_slice), &Point3::new(0.5, 0.5, 0.5));
+        assert!((inside + 1.0).abs() < 1e-12);
     }
 }

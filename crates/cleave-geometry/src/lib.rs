@@ -55,7 +55,7 @@ pub use hex_slice::{
     DEFAULT_MERGE_BELOW, GRID_MARGIN, HexSliceOptions, HexSlicing, MAX_SLICE_CELLS, MIN_FACE_AREA, hex_slice,
     hex_slice_with,
 };
-pub use inside::InsideTester;
+pub use inside::{InsideTester, polygon_winding_number};
 pub use merge::{MergeReport, merge_small_elements};
 pub use mesh::TriangleMesh;
 pub use moments::{

@@ -10,11 +10,11 @@ use crate::backend::{
     parse_settings,
 };
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real};
+use cleave_geometry::arrangement::Cover;
 use cleave_testkit::compare::{
     BoxGrid, BuildError, BuiltProblem, CompareBackend, CutError, CutProblem, DirichletSpec, ExtremeCase, NotApplicable,
     corner_pushed_in, stretch_start,
 };
-use cleave_geometry::arrangement::Cover;
 use cleave_virtualnode::{VirtualNodeMesh, box_surface};
 
 /// Registration of `cleave-virtualnode`: one variant, corotated linear tetrahedra on a BCC lattice.

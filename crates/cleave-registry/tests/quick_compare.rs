@@ -9,7 +9,8 @@ use cleave_core::{Material, Point3, Real, Vector3};
 use cleave_integrator::{Constraints, Integrator, Settings};
 use cleave_registry::{backend, backends};
 use cleave_testkit::compare::{
-    CSV_HEADER, DirichletSpec, ExtremeCase, Problem, Row, Silent, StudyPlan, observed_rates, parse_csv, run_study,
+    CANTILEVER_LAMBDA, CSV_HEADER, DirichletSpec, ExtremeCase, Problem, Row, Silent, StudyPlan, observed_rates,
+    parse_csv, richardson, run_study,
 };
 use cleave_testkit::stability::{DENSITY, Start, Verdict, beam_grid, cells, run_cell};
 
@@ -86,7 +87,7 @@ fn quick_mms_and_cantilever_rows_converge_and_parse() {
     // (Euler–Bernoulli's 3.767 m and 2.957e4 J omit shear and the clamp: not a reference.)
     let extrapolate = |key: fn(&Row) -> Option<Real>| {
         let (coarse, fine) = (key(beam[1]).unwrap(), key(beam[2]).unwrap());
-        fine + (fine - coarse) / (2f64.powf(2.0 * 0.711) - 1.0)
+        richardson(coarse, fine, 2.0, 2.0 * CANTILEVER_LAMBDA)
     };
     let (tip, energy) = (extrapolate(|r| r.tip_uz_avg), extrapolate(|r| r.strain_energy));
     println!("Richardson limits from n = 2, 4: tip {tip:.5} m, energy {energy:.5e} J");

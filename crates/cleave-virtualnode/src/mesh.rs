@@ -4,15 +4,15 @@
 //! triangle soups.
 
 use crate::FastMap;
-use cleave_geometry::arrangement::{Arrangement, Cover, OVERLAP_TOLERANCE, TET_FACES};
 use crate::lattice::{BccLattice, LatticeTetCorners, number_nodes};
-use cleave_geometry::predicates::{convex_overlap_area, largest_component, project};
 use crate::tet::{TetRule, TetShape};
 use cleave_core::rotation::extract_rotation;
 use cleave_core::{
     BlockSet, BlockSetBuilder, CutSurface, Cuttable, Discretization, DofRemap, EmbedError, Embedding, FieldSample,
     FrameRemap, Mass, Material, Matrix3, Point3, Real, RotationStats, TopologyChange, TopologyError, Vector3,
 };
+use cleave_geometry::arrangement::{Arrangement, Cover, OVERLAP_TOLERANCE, TET_FACES};
+use cleave_geometry::predicates::{convex_overlap_area, largest_component, project};
 use cleave_geometry::{InsideTester, TriangleMesh, UnionFind};
 use nalgebra::{DMatrix, Point2};
 use rayon::prelude::*;
@@ -1127,8 +1127,9 @@ fn contiguous(
     threshold: Real,
     scratch: &mut (Vec<Point2<Real>>, Vec<Point2<Real>>),
 ) -> bool {
-    let any_area =
-        |pieces: &[Vec<Point2<Real>>]| pieces.iter().any(|p| cleave_geometry::predicates::polygon_area_2d(p).abs() > threshold);
+    let any_area = |pieces: &[Vec<Point2<Real>>]| {
+        pieces.iter().any(|p| cleave_geometry::predicates::polygon_area_2d(p).abs() > threshold)
+    };
     match (a, b) {
         (FacePieces::Whole, FacePieces::Whole) => true,
         (FacePieces::Whole, FacePieces::Pieces(p)) | (FacePieces::Pieces(p), FacePieces::Whole) => any_area(p),

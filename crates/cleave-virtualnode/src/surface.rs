@@ -12,9 +12,9 @@
 //! come from the last render (`RenderCache`), and the result is the one made from scratch.
 
 use crate::FastMap;
-use cleave_geometry::arrangement::{Arrangement, Cover, Face};
 use crate::mesh::VirtualNodeMesh;
 use cleave_core::{Discretization, Embedding, Point3, Real, Vector3};
+use cleave_geometry::arrangement::{Arrangement, Cover, Face};
 use cleave_geometry::closest_point_on_triangle;
 use rayon::prelude::*;
 

@@ -3,9 +3,9 @@
 //! carved block.
 
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real};
+use cleave_geometry::arrangement::{Arrangement, Cover, REFUSED};
 use cleave_testkit::Lcg;
 use cleave_virtualnode::VirtualNodeMesh;
-use cleave_geometry::arrangement::{Arrangement, Cover, REFUSED};
 use std::sync::atomic::Ordering;
 
 /// Draws soups of triangles, many of them degenerate relative to the given reference points

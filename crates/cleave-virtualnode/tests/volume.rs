@@ -2,8 +2,8 @@
 //! tetrahedron cut into more than a thousand regions; the paper's block cut into sticks.
 
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real, Vector3};
-use cleave_virtualnode::VirtualNodeMesh;
 use cleave_geometry::arrangement::{Arrangement, Cover};
+use cleave_virtualnode::VirtualNodeMesh;
 
 fn material() -> Material {
     Material::new(1e5, 0.3, 1234.0).unwrap()

@@ -73,7 +73,7 @@ const CONSISTENT_ENERGY: Real = 3.1955e4;
 /// Richardson extrapolation of levels n and 2n converging like h^(2λ), λ = 0.711 the
 /// clamped-edge singularity exponent at ν = 0.3 (benchmarks.md §2).
 fn extrapolate(coarse: Real, fine: Real) -> Real {
-    fine + (fine - coarse) / (2f64.powf(2.0 * 0.711) - 1.0)
+    cleave_testkit::compare::richardson(coarse, fine, 2.0, 2.0 * cleave_testkit::compare::CANTILEVER_LAMBDA)
 }
 
 #[test]
