@@ -4,6 +4,7 @@
 //! returns what it measured, so a failing test says by how much.
 
 pub mod compare;
+pub mod cut_conformance;
 pub mod momentum;
 pub mod problems;
 pub mod stability;

@@ -1,8 +1,11 @@
-//! The conformance suite on a carved block, before and after cuts (plane and triangle soup).
+//! The conformance suite on a carved block, before and after cuts (plane and triangle soup),
+//! and the cut contract (`cleave_testkit::cut_conformance`).
 
-use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Vector3};
+use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real, Vector3};
+use cleave_testkit::cut_conformance::{CutBody, CutSubject, cut_conformance};
 use cleave_testkit::{assert_all_pass, conformance_suite};
-use cleave_virtualnode::VirtualNodeMesh;
+use cleave_virtualnode::{VirtualNodeMesh, box_surface};
+use nalgebra::Isometry3;
 
 fn block() -> VirtualNodeMesh {
     let material = Material::new(3e5, 0.35, 1100.0).unwrap();
@@ -27,4 +30,41 @@ fn cut_block_passes_the_conformance_suite() {
     assert_eq!(mesh.pieces().len(), 2);
     println!("{} duplicates, {} nodes", mesh.num_duplicates(), mesh.num_nodes());
     assert_all_pass(&conformance_suite(&mesh));
+}
+
+#[test]
+fn cuts_keep_the_cut_contract() {
+    // A block off the lattice planes, cut by an oblique plane, a partial slanted triangle that
+    // ends inside the material, a curved soup (a bent strip of triangles) and a plane through
+    // lattice nodes; moved by a turn about a skew axis and a translation off the lattice.
+    let material = Material::new(3e5, 0.35, 1100.0).unwrap();
+    let surface = box_surface(Point3::new(0.03, -0.21, 0.11), Point3::new(0.83, 0.17, 0.52));
+    let make = |motion: &Isometry3<Real>| -> Box<dyn CutBody> {
+        let moved = surface.transformed(|p| motion * p);
+        Box::new(VirtualNodeMesh::carve(&moved, 0.1, material).unwrap())
+    };
+    let strip: Vec<[Point3<Real>; 3]> = (0..12)
+        .flat_map(|k| {
+            let y = |k: usize| -0.3 + 0.06 * k as Real;
+            let x = |k: usize| 0.55 + 0.08 * (3.0 * y(k)).sin();
+            let (p0, p1) = (Point3::new(x(k), y(k), 0.0), Point3::new(x(k + 1), y(k + 1), 0.0));
+            let (q0, q1) = (p0 + Vector3::new(0.02, 0.0, 0.7), p1 + Vector3::new(0.02, 0.0, 0.7));
+            [[p0, p1, q1], [p0, q1, q0]]
+        })
+        .collect();
+    let subject = CutSubject {
+        make: &make,
+        cuts: vec![
+            CutSurface::Plane { point: Point3::new(0.3, 0.0, 0.0), normal: Vector3::new(1.0, 0.3, 0.1) },
+            CutSurface::Triangles(vec![[
+                Point3::new(0.42, -0.3, 0.2),
+                Point3::new(0.5, 0.3, 0.35),
+                Point3::new(0.46, -0.3, 0.6),
+            ]]),
+            CutSurface::Triangles(strip),
+            CutSurface::Plane { point: Point3::new(0.0, 0.0, 0.3), normal: Vector3::z() },
+        ],
+        placement: Isometry3::new(Vector3::new(0.37, -1.21, 2.53), Vector3::new(0.3, -0.5, 0.8)),
+    };
+    assert_all_pass(&cut_conformance(&subject));
 }
