@@ -9,7 +9,7 @@ use crate::cutting::{self, CutRow};
 use crate::machine::{RssProbe, machine_line};
 use crate::plots;
 use anyhow::{Context, Result, bail};
-use cleave_registry::backends;
+use cleave_registry::registered;
 use cleave_testkit::compare::{
     CSV_HEADER, CUT_DYNAMIC_CUT_STEP, CUT_DYNAMIC_STEPS, CompareBackend, DYNAMIC_STEPS, KAUFMANN2008_TABLE1, Problem,
     Row, StudyObserver, StudyPlan, Table1Timings, TipReference, cantilever_reference, cut_cantilever_reference,
@@ -139,8 +139,8 @@ fn previous_stops(path: &Path) -> Vec<(String, String, String)> {
 
 /// The registered backends named in `names` (all if empty); unknown names are an error that
 /// lists the registered ones.
-pub fn selected_backends(names: &[String]) -> Result<Vec<Box<dyn CompareBackend>>> {
-    let all = backends();
+pub fn selected_backends(names: &[String]) -> Result<Vec<Box<dyn cleave_registry::Backend>>> {
+    let all = registered();
     let registered: Vec<String> = all.iter().map(|b| b.name().to_string()).collect();
     if let Some(unknown) = names.iter().find(|n| !registered.contains(n)) {
         bail!("no backend {unknown:?} is registered (registered: {})", registered.join(", "));
@@ -377,7 +377,7 @@ fn by_method(rows: &[Row], problem: Problem) -> Vec<(String, Vec<&Row>)> {
 /// e.g. from an old CSV, count as consistent).
 pub fn method_is_consistent(method: &str) -> bool {
     let (name, variant) = method.split_once('/').unwrap_or((method, ""));
-    cleave_registry::backend(name).is_none_or(|b| b.is_consistent(variant))
+    cleave_registry::find(name).is_none_or(|b| b.is_consistent(variant))
 }
 
 /// The cantilever reference of `rows` by the rule of [`cantilever_reference`].

@@ -13,7 +13,7 @@
 use crate::machine::machine_line;
 use anyhow::{Context, Result, bail};
 use cleave_core::{Matrix3, Point3, Real, Vector3};
-use cleave_registry::backends;
+use cleave_registry::registered;
 use cleave_scene::{Simulation, load_scene};
 use cleave_testkit::compare::{BoxGrid, DirichletSpec, Problem, run_problem, table1_timings};
 use std::fs;
@@ -61,7 +61,7 @@ pub fn perf(args: PerfArgs) -> Result<()> {
     let (steps_per_s, _, _, _, iterations) = scene_run(Path::new("scenes/bunny_drop_voxel.ron"))?;
     figures.extend([steps_per_s, iterations]);
     say("kaufmann2008 Table 1");
-    let dg = backends().into_iter().find(|b| b.name() == "dg").context("the dg backend is not registered")?;
+    let dg = registered().into_iter().find(|b| b.name() == "dg").context("the dg backend is not registered")?;
     for variant in ["bz-1", "ip-1", "bz-2", "ip-2"] {
         let timing = table1_timings(dg.as_ref(), variant, 3).map_err(|e| anyhow::anyhow!("Table 1, {variant}: {e}"))?;
         figures.push(1e3 * timing.solve);
@@ -69,7 +69,8 @@ pub fn perf(args: PerfArgs) -> Result<()> {
     say("voxel stiffness action");
     figures.push(stiffness_gflops()?);
     say("static voxel cantilever at n = 16");
-    let voxel = backends().into_iter().find(|b| b.name() == "voxel").context("the voxel backend is not registered")?;
+    let voxel =
+        registered().into_iter().find(|b| b.name() == "voxel").context("the voxel backend is not registered")?;
     let row = run_problem(voxel.as_ref(), "trilinear", Problem::Cantilever, 16)
         .map_err(|e| anyhow::anyhow!("static cantilever: {e}"))?;
     figures.push(row.seconds_total.unwrap_or(f64::NAN));
@@ -167,7 +168,8 @@ fn scene_run(path: &Path) -> Result<(f64, f64, f64, f64, f64)> {
 /// GFLOP/s counting 1,392 operations a cube (the 24 × 24 product, 1,152, and rotating the eight
 /// corners' 3-vectors in and out, 240).
 fn stiffness_gflops() -> Result<f64> {
-    let voxel = backends().into_iter().find(|b| b.name() == "voxel").context("the voxel backend is not registered")?;
+    let voxel =
+        registered().into_iter().find(|b| b.name() == "voxel").context("the voxel backend is not registered")?;
     let grid = BoxGrid { origin: Point3::origin(), h: 0.01, dims: [22, 22, 21] };
     let material = cleave_core::Material::new(2e5, 0.3, 1000.0)?;
     let nowhere = |_: &Point3<Real>| false;

@@ -219,7 +219,7 @@ pub fn stability(args: StabilityArgs) -> Result<()> {
         sections.push((format!("{name}/{variant}"), section));
     }
     // Registered order, then anything else.
-    let order: Vec<String> = cleave_registry::backends()
+    let order: Vec<String> = cleave_registry::registered()
         .iter()
         .flat_map(|b| b.variants().into_iter().map(|v| format!("{}/{v}", b.name())).collect::<Vec<_>>())
         .collect();

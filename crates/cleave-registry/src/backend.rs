@@ -1,7 +1,9 @@
-//! The one registration of a backend: how a scene builds it from its own RON settings, which
-//! capabilities it has, how its pins are resolved on a (possibly cut) discretization, and its
-//! comparison variants. The scene runner and `cargo xtask compare`/`stability` go through this
-//! trait only, so a new backend is one file here and one line in [`crate::backends`].
+//! The one registration of a backend ([`Backend`]): how a scene builds it from its own RON
+//! settings, how its pins are resolved on a (possibly cut) discretization, and, through its
+//! supertrait [`CompareBackend`], its name and comparison variants. Its capabilities are read off
+//! a small solid it builds (`as_cuttable`, `as_fracturable`, `as_refinable`), not declared. The
+//! scene runner and `cargo xtask compare`/`stability` go through this trait only, so a new
+//! backend is one file here and one line in [`crate::registered`].
 
 use cleave_core::{Discretization, Point3, Real};
 use cleave_geometry::TriangleMesh;
@@ -123,16 +125,31 @@ pub fn parse_settings<T: DeserializeOwned>(text: &str) -> Result<T, BackendError
     })
 }
 
-/// One registration per backend.
-pub trait Backend: Send + Sync {
-    /// Name as in scenes and `--backend` ("voxel", "dg", "virtualnode").
-    fn name(&self) -> &str;
-
+/// One registration per backend: scenes through this trait, comparisons through its supertrait
+/// (whose `name` is the one in scenes and `--backend`: "voxel", "dg", "virtualnode").
+pub trait Backend: CompareBackend + Send + Sync {
     /// One line for `--backend` listings: method and paper.
     fn summary(&self) -> &str;
 
-    /// What it can do.
-    fn capabilities(&self) -> Capabilities;
+    /// What it can do, read off the box of its first comparison variant (two cells along x, one
+    /// across, pinned nowhere): whether that discretization answers `as_cuttable`,
+    /// `as_fracturable` and `as_refinable`. A box it cannot build can do nothing.
+    fn capabilities(&self) -> Capabilities {
+        let Some(variant) = self.variants().into_iter().next() else { return Capabilities::default() };
+        let Ok(material) = cleave_core::Material::new(1e5, 0.3, 1000.0) else { return Capabilities::default() };
+        let grid = cleave_testkit::compare::BoxGrid { origin: Point3::origin(), h: 0.5, dims: [2, 1, 1] };
+        match self.build_box(&variant, &material, &grid, &cleave_testkit::compare::DirichletSpec::none()) {
+            Ok(mut built) => {
+                let d = built.discretization.as_mut();
+                Capabilities {
+                    cut: d.as_cuttable().is_some(),
+                    fracture: d.as_fracturable().is_some(),
+                    refine: d.as_refinable().is_some(),
+                }
+            }
+            Err(_) => Capabilities::default(),
+        }
+    }
 
     /// Builds the scene's solid from this backend's settings (`settings` is the RON text of the
     /// scene's entry for this backend, e.g. `(cell_size: 0.25)`).
@@ -144,9 +161,6 @@ pub trait Backend: Send + Sync {
     fn resolve_pins(&self, discretization: &dyn Discretization, pins: &[Region]) -> Result<ResolvedPins, BackendError> {
         nodal_pins(discretization, pins)
     }
-
-    /// Its registration with the comparison harness.
-    fn compare(&self) -> &dyn CompareBackend;
 }
 
 /// Every node whose rest position lies in a region, all three components; an error names a

@@ -3,8 +3,8 @@
 //! Dirichlet region), handed over as a load vector; no DOF is pinned.
 
 use crate::backend::{
-    Backend, BackendError, BuiltSolid, Capabilities, Region, ResolvedPins, RestSurface, Shape, SolidRequest, box_dims,
-    cell_size_for, one_size, parse_settings,
+    Backend, BackendError, BuiltSolid, Region, ResolvedPins, RestSurface, Shape, SolidRequest, box_dims, cell_size_for,
+    one_size, parse_settings,
 };
 use cleave_core::{Discretization, Material, Matrix3, Point3, Real, Vector3};
 use cleave_dg::{DgMesh, DgOptions, Flux, WeakDirichlet};
@@ -140,16 +140,8 @@ fn one() -> usize {
 }
 
 impl Backend for DgBackend {
-    fn name(&self) -> &str {
-        "dg"
-    }
-
     fn summary(&self) -> &str {
         "discontinuous Galerkin FEM on polyhedra, BZ/IP fluxes, degree 1-2 (Kaufmann et al. 2008)"
-    }
-
-    fn capabilities(&self) -> Capabilities {
-        Capabilities::default()
     }
 
     fn build_solid(&self, settings: &str, request: &SolidRequest) -> Result<BuiltSolid, BackendError> {
@@ -224,10 +216,6 @@ impl Backend for DgBackend {
         } else {
             Err(BackendError::Build("dg resolves its weak pins only when the mesh is built".into()))
         }
-    }
-
-    fn compare(&self) -> &dyn CompareBackend {
-        self
     }
 }
 

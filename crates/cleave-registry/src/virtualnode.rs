@@ -6,8 +6,7 @@
 //! virtual nodes outside the box included.
 
 use crate::backend::{
-    Backend, BackendError, BuiltSolid, Capabilities, RestSurface, Shape, SolidRequest, cell_size_for, one_size,
-    parse_settings,
+    Backend, BackendError, BuiltSolid, RestSurface, Shape, SolidRequest, cell_size_for, one_size, parse_settings,
 };
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real};
 use cleave_geometry::arrangement::Cover;
@@ -38,16 +37,8 @@ fn carve(surface: &cleave_geometry::TriangleMesh, h: Real, material: Material) -
 }
 
 impl Backend for VirtualNodeBackend {
-    fn name(&self) -> &str {
-        "virtualnode"
-    }
-
     fn summary(&self) -> &str {
         "corotated linear tetrahedra with the generalized virtual node algorithm (Sifakis, Der, Fedkiw 2007)"
-    }
-
-    fn capabilities(&self) -> Capabilities {
-        Capabilities { cut: true, ..Default::default() }
     }
 
     fn build_solid(&self, settings: &str, request: &SolidRequest) -> Result<BuiltSolid, BackendError> {
@@ -66,10 +57,6 @@ impl Backend for VirtualNodeBackend {
         // the input's, for reports.
         let rest = RestSurface { vertices: surface.vertices.clone(), triangles: surface.triangles.clone() };
         Ok(BuiltSolid { discretization: Box::new(mesh), elements, element_size: h, pins, surface: rest })
-    }
-
-    fn compare(&self) -> &dyn CompareBackend {
-        self
     }
 }
 

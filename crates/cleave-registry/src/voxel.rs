@@ -5,8 +5,8 @@
 //! cracked hexahedral grid of benchmarks.md §5; scenes cannot cut it yet.
 
 use crate::backend::{
-    Backend, BackendError, BuiltSolid, Capabilities, RestSurface, Shape, SolidRequest, box_dims, cell_size_for,
-    one_size, parse_settings,
+    Backend, BackendError, BuiltSolid, RestSurface, Shape, SolidRequest, box_dims, cell_size_for, one_size,
+    parse_settings,
 };
 use cleave_core::{CutSurface, Discretization, Material, Point3, Real};
 use cleave_testkit::compare::{
@@ -175,16 +175,8 @@ struct VoxelSettings {
 }
 
 impl Backend for VoxelBackend {
-    fn name(&self) -> &str {
-        "voxel"
-    }
-
     fn summary(&self) -> &str {
         "voxel cube FEM, closed-form 24×24 cube stiffness (Müller, Teschner, Gross 2004)"
-    }
-
-    fn capabilities(&self) -> Capabilities {
-        Capabilities::default()
     }
 
     fn build_solid(&self, settings: &str, request: &SolidRequest) -> Result<BuiltSolid, BackendError> {
@@ -217,10 +209,6 @@ impl Backend for VoxelBackend {
         let pins = self.resolve_pins(&mesh, request.pins)?;
         let (elements, element_size) = (mesh.num_cubes(), mesh.cell_size());
         Ok(BuiltSolid { discretization: Box::new(mesh), elements, element_size, pins, surface })
-    }
-
-    fn compare(&self) -> &dyn CompareBackend {
-        self
     }
 }
 

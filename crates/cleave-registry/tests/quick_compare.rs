@@ -7,7 +7,7 @@
 
 use cleave_core::{Material, Point3, Real, Vector3};
 use cleave_integrator::{Constraints, Integrator, Settings};
-use cleave_registry::{backend, backends};
+use cleave_registry::{find, registered};
 use cleave_testkit::compare::{
     CANTILEVER_LAMBDA, CSV_HEADER, DirichletSpec, ExtremeCase, Problem, Row, Silent, StudyPlan, observed_rates,
     parse_csv, richardson, run_study,
@@ -15,7 +15,7 @@ use cleave_testkit::compare::{
 use cleave_testkit::stability::{DENSITY, Start, Verdict, beam_grid, cells, run_cell};
 
 fn quick_rows(problem: Problem) -> Vec<Row> {
-    let voxel = backend("voxel").expect("voxel is registered");
+    let voxel = find("voxel").expect("voxel is registered");
     let outcome = run_study(voxel.as_ref(), "trilinear", problem, &StudyPlan::quick(problem), &mut Silent);
     println!("{}: stopped by {}", problem.key(), outcome.stop_reason);
     outcome.rows
@@ -23,9 +23,9 @@ fn quick_rows(problem: Problem) -> Vec<Row> {
 
 #[test]
 fn voxel_is_registered_once_with_one_variant() {
-    let names: Vec<String> = backends().iter().map(|b| b.name().to_string()).collect();
+    let names: Vec<String> = registered().iter().map(|b| b.name().to_string()).collect();
     assert_eq!(names.iter().filter(|n| *n == "voxel").count(), 1, "{names:?}");
-    assert_eq!(backend("voxel").unwrap().variants(), vec!["trilinear".to_string()]);
+    assert_eq!(find("voxel").unwrap().variants(), vec!["trilinear".to_string()]);
 }
 
 #[test]
@@ -97,7 +97,7 @@ fn quick_mms_and_cantilever_rows_converge_and_parse() {
 
 #[test]
 fn stability_cells_pass_or_name_their_failure() {
-    let voxel = backend("voxel").unwrap();
+    let voxel = find("voxel").unwrap();
     let all = cells();
     assert_eq!(all.len(), 4 * 5 * 3 + 3 + 2 * 2 * 2, "the §4 grid, three extreme cases, 2 × (2 E × 2 ν) cut beams");
     // The cut beam: cubes separate across the faces of the node plane, and cannot cut 1e-6 h off it.

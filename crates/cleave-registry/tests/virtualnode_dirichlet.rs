@@ -8,7 +8,7 @@
 
 use cleave_core::{Material, Point3, Real};
 use cleave_integrator::solve_static;
-use cleave_registry::backend;
+use cleave_registry::find;
 use cleave_testkit::compare::{BuiltProblem, DirichletSpec, Problem};
 use cleave_testkit::problems::{Manufactured, field_errors, on_unit_cube_boundary, rate};
 
@@ -16,7 +16,7 @@ fn build(case: Manufactured, n: usize) -> BuiltProblem {
     let material = Material::new(1e6, 0.3, 1000.0).unwrap();
     let value = move |p: &Point3<Real>| case.displacement(p);
     let dirichlet = DirichletSpec { region: &on_unit_cube_boundary, value: &value };
-    let virtualnode = backend("virtualnode").expect("virtualnode is registered");
+    let virtualnode = find("virtualnode").expect("virtualnode is registered");
     virtualnode.build_box("linear-tet", &material, &Problem::MmsSin111.grid(n), &dirichlet).unwrap()
 }
 

@@ -5,7 +5,7 @@
 //! the harness on that mesh (not on the uncut box) to a verdict.
 
 use cleave_core::{Material, Real};
-use cleave_registry::{SLIVER_OFFSET, backend, sliver_beam};
+use cleave_registry::{SLIVER_OFFSET, find, sliver_beam};
 use cleave_testkit::compare::ExtremeCase;
 use cleave_testkit::stability::{DENSITY, Verdict, beam_grid, cells, run_cell};
 
@@ -36,7 +36,7 @@ fn the_cracked_beam_has_a_region_below_1e9_of_a_tet_and_stays_one_piece() {
 
 #[test]
 fn the_sliver_cell_runs_on_the_cracked_beam() {
-    let virtualnode = backend("virtualnode").unwrap();
+    let virtualnode = find("virtualnode").unwrap();
     let grid = beam_grid();
     let material = Material::new(1e6, 0.3, DENSITY).unwrap();
     let clamp = |p: &cleave_core::Point3<Real>| p.x.abs() < 1e-9;
