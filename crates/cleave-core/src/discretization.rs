@@ -324,4 +324,18 @@ pub trait Discretization: Send + Sync {
     fn as_refinable(&mut self) -> Option<&mut dyn Refinable> {
         None
     }
+
+    /// The nodes whose values impose Dirichlet data strongly on the part of the boundary inside
+    /// `region` (rest space), ascending. Scenes' pins and the comparisons' boundary data both
+    /// resolve through it. The default, every node whose rest position lies in `region`, is
+    /// right for nodal bases whose shape functions vanish on the boundary away from their node;
+    /// backends whose elements reach past the boundary (virtual node's carved tetrahedra)
+    /// override it. Weak backends (DG) impose data through their boundary terms instead.
+    fn dirichlet_nodes(&self, region: &dyn Fn(&Point3<Real>) -> bool) -> Vec<u32> {
+        let rest = self.rest_dofs();
+        (0..rest.len() / 3)
+            .filter(|&k| region(&Point3::new(rest[3 * k], rest[3 * k + 1], rest[3 * k + 2])))
+            .map(|k| k as u32)
+            .collect()
+    }
 }

@@ -163,23 +163,20 @@ pub trait Backend: CompareBackend + Send + Sync {
     }
 }
 
-/// Every node whose rest position lies in a region, all three components; an error names a
-/// region that holds no node.
+/// The nodes `Discretization::dirichlet_nodes` holds for each region (every node whose rest
+/// position lies in it, for nodal bases; more for carved ones), all three components; an error
+/// names a region that holds no node.
 pub fn nodal_pins(discretization: &dyn Discretization, pins: &[Region]) -> Result<ResolvedPins, BackendError> {
     let mut pinned_dofs = Vec::new();
     for (index, region) in pins.iter().enumerate() {
-        let before = pinned_dofs.len();
-        for (node, p) in discretization.rest_dofs().chunks_exact(3).enumerate() {
-            if region.contains(p) {
-                pinned_dofs.extend(3 * node..3 * node + 3);
-            }
-        }
-        if pinned_dofs.len() == before {
+        let nodes = discretization.dirichlet_nodes(&|p: &Point3<Real>| region.contains(p.coords.as_slice()));
+        if nodes.is_empty() {
             return Err(BackendError::Build(format!(
                 "pins[{index}]: the region {:?}..{:?} contains no node",
                 region.min, region.max
             )));
         }
+        pinned_dofs.extend(nodes.iter().flat_map(|&n| 3 * n as usize..3 * n as usize + 3));
     }
     pinned_dofs.sort_unstable();
     pinned_dofs.dedup();

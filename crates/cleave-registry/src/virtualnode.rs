@@ -9,7 +9,6 @@ use crate::backend::{
     Backend, BackendError, BuiltSolid, RestSurface, Shape, SolidRequest, cell_size_for, one_size, parse_settings,
 };
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real};
-use cleave_geometry::arrangement::Cover;
 use cleave_testkit::compare::{
     BoxGrid, BuildError, BuiltProblem, CompareBackend, CutError, CutProblem, DirichletSpec, ExtremeCase, NotApplicable,
     corner_pushed_in, stretch_start,
@@ -162,44 +161,18 @@ impl CompareBackend for VirtualNodeBackend {
     }
 }
 
-/// Dirichlet data of a carved box, prescribed strongly and consistently. BCC tetrahedra straddle
-/// the box's faces, so a duplicate at the boundary has node copies outside the box (virtual
-/// nodes). Pinning only the nodes that lie on the boundary leaves those free, and the free
-/// nodes' shape functions do not vanish on the boundary: the data is then imposed only in part
-/// (measured: L2 rates 0.9 and 1.2 on the manufactured solutions, the cantilever 0.5 % soft).
-/// Here every node of every duplicate whose region has a face on the Dirichlet part (an
-/// object-surface face all of whose vertices satisfy `dirichlet.region`) gets `dirichlet.value`
-/// at its rest position (its lattice node's, outside the box for a virtual node; the
-/// manufactured solutions extend smoothly there, and a clamp is zero), and so does every node
-/// lying on the Dirichlet part itself. Every free node then belongs only to duplicates that do
-/// not touch the Dirichlet part, so its shape function vanishes there and the exact solution
-/// satisfies the discrete equations up to interpolation: linear tetrahedra converge at rate 2 in
-/// L2 again.
+/// Dirichlet data of a carved box, prescribed strongly at the nodes
+/// `Discretization::dirichlet_nodes` holds (every node of a duplicate touching the Dirichlet
+/// part, virtual nodes outside the box included: the scene's pins resolve through the same
+/// function), each given `dirichlet.value` at its rest position (its lattice node's, outside the
+/// box for a virtual node; the manufactured solutions extend smoothly there, and a clamp is zero).
 pub fn carved_dirichlet(mesh: &VirtualNodeMesh, dirichlet: &DirichletSpec) -> Vec<(usize, Real)> {
     let rest = mesh.rest_dofs();
-    let mut prescribed_node = vec![false; mesh.num_nodes()];
-    for (node, p) in rest.chunks_exact(3).enumerate() {
-        prescribed_node[node] = (dirichlet.region)(&Point3::new(p[0], p[1], p[2]));
-    }
-    for d in 0..mesh.num_duplicates() {
-        let cells = mesh.duplicate_cells(d);
-        let touches = cells.cells.iter().flat_map(|c| &c.faces).any(|face| {
-            face.cover == Cover::Surface
-                && face.verts.len() >= 3
-                && face.verts.iter().all(|&v| (dirichlet.region)(&cells.point(v)))
-        });
-        if touches {
-            for node in mesh.duplicate_nodes_of(d) {
-                prescribed_node[node as usize] = true;
-            }
-        }
-    }
     let mut prescribed = Vec::new();
-    for (node, p) in rest.chunks_exact(3).enumerate() {
-        if prescribed_node[node] {
-            let u = (dirichlet.value)(&Point3::new(p[0], p[1], p[2]));
-            prescribed.extend((0..3).map(|c| (3 * node + c, u[c])));
-        }
+    for node in mesh.dirichlet_nodes(dirichlet.region) {
+        let k = 3 * node as usize;
+        let u = (dirichlet.value)(&Point3::new(rest[k], rest[k + 1], rest[k + 2]));
+        prescribed.extend((0..3).map(|c| (k + c, u[c])));
     }
     prescribed
 }

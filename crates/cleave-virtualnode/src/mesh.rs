@@ -900,6 +900,35 @@ impl Discretization for VirtualNodeMesh {
         Some(self)
     }
 
+    /// Dirichlet nodes of a carved body (docs/math/virtual-node.md, "Dirichlet data"). BCC
+    /// tetrahedra straddle the object's surface, so a duplicate at the boundary has node copies
+    /// outside it (virtual nodes). Holding only the nodes that lie in `region` leaves those
+    /// free, and the free nodes' shape functions do not vanish on the boundary: the data is then
+    /// imposed only in part (measured: L2 rates 0.9 and 1.2 on the manufactured solutions, the
+    /// cantilever 0.5 % soft). Here every node of every duplicate whose region has an
+    /// object-surface face all of whose vertices lie in `region` is held, and so is every node
+    /// lying in `region` itself. Every free node then belongs only to duplicates that do not
+    /// touch the Dirichlet part, so its shape function vanishes there: linear tetrahedra
+    /// converge at rate 2 in L2 again.
+    fn dirichlet_nodes(&self, region: &dyn Fn(&Point3<Real>) -> bool) -> Vec<u32> {
+        let rest = self.rest_dofs();
+        let mut held: Vec<bool> = rest.chunks_exact(3).map(|p| region(&Point3::new(p[0], p[1], p[2]))).collect();
+        for duplicate in &self.duplicates {
+            let cells = &duplicate.cells;
+            let touches = cells.cells.iter().flat_map(|c| &c.faces).any(|face| {
+                face.cover == Cover::Surface
+                    && face.verts.len() >= 3
+                    && face.verts.iter().all(|&v| region(&cells.point(v)))
+            });
+            if touches {
+                for &node in &duplicate.nodes {
+                    held[node as usize] = true;
+                }
+            }
+        }
+        (0..held.len() as u32).filter(|&k| held[k as usize]).collect()
+    }
+
     fn copy_for_cutting(&self) -> Option<Box<dyn Discretization>> {
         Some(Box::new(self.clone()))
     }
