@@ -112,6 +112,10 @@ pub enum BackendError {
     /// The settings are well formed but the solid cannot be built with them.
     #[error("{0}")]
     Build(String),
+    /// The scene's surface mesh cannot be discretized (it encloses no volume, it is too large
+    /// for the cell size, slicing or carving it failed): the scene names the mesh file.
+    #[error("{0}")]
+    Mesh(String),
 }
 
 /// Parses a backend's settings from its RON text (`implicit_some`, so `cell_size: 0.25` fills an
@@ -195,7 +199,8 @@ pub fn box_dims(min: &[Real; 3], max: &[Real; 3], h: Real) -> Result<[usize; 3],
 }
 
 /// A cell size giving about `target` elements: start from volume/target and correct by the
-/// cube root of the measured count ratio a few times.
+/// cube root of the measured count ratio a few times (`count` discretizes `mesh`: its errors
+/// are the mesh's).
 pub fn cell_size_for(
     mesh: &TriangleMesh,
     target: usize,
@@ -204,11 +209,11 @@ pub fn cell_size_for(
 ) -> Result<Real, BackendError> {
     let volume = mesh.signed_volume();
     if volume.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) || target == 0 {
-        return Err(BackendError::Build(format!("cannot size {target} elements in an enclosed volume of {volume}")));
+        return Err(BackendError::Mesh(format!("cannot size {target} elements in an enclosed volume of {volume}")));
     }
     let mut h = (volume / target as Real).cbrt();
     for _ in 0..4 {
-        let ratio = count(h).map_err(BackendError::Build)? as Real / target as Real;
+        let ratio = count(h).map_err(BackendError::Mesh)? as Real / target as Real;
         if (ratio - 1.0).abs() < tolerance {
             break;
         }

@@ -146,7 +146,6 @@ impl Backend for DgBackend {
 
     fn build_solid(&self, settings: &str, request: &SolidRequest) -> Result<BuiltSolid, BackendError> {
         let settings: DgSettings = parse_settings(settings)?;
-        let build = |e: &dyn std::fmt::Display| BackendError::Build(e.to_string());
         let (poly, h, surface) = match request.shape {
             Shape::Surface(surface) => {
                 let h = one_size("dg", settings.cell_size, settings.target_elements, "target_elements", |target| {
@@ -154,7 +153,7 @@ impl Backend for DgBackend {
                         cleave_geometry::hex_slice(surface, h).map(|s| s.mesh.num_elements).map_err(|e| e.to_string())
                     })
                 })?;
-                let slicing = cleave_geometry::hex_slice(surface, h).map_err(|e| build(&e))?;
+                let slicing = cleave_geometry::hex_slice(surface, h).map_err(|e| BackendError::Mesh(e.to_string()))?;
                 let rest = RestSurface { vertices: surface.vertices.clone(), triangles: surface.triangles.clone() };
                 (slicing.mesh, h, rest)
             }

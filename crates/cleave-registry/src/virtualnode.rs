@@ -49,7 +49,10 @@ impl Backend for VirtualNodeBackend {
         let h = one_size("virtualnode", settings.cell_size, settings.target_tets, "target_tets", |target| {
             cell_size_for(&surface, target, 0.1, |h| carve(&surface, h, request.material).map(|m| m.num_duplicates()))
         })?;
-        let mesh = carve(&surface, h, request.material).map_err(BackendError::Build)?;
+        let mesh = carve(&surface, h, request.material).map_err(match request.shape {
+            Shape::Surface(_) => BackendError::Mesh,
+            Shape::Box { .. } => BackendError::Build,
+        })?;
         let pins = self.resolve_pins(&mesh, request.pins)?;
         let elements = mesh.num_duplicates();
         // The scene renders the backend's own surface (`Cuttable::surface`); this one is only

@@ -189,9 +189,10 @@ impl Backend for VoxelBackend {
                         cleave_geometry::voxelize(surface, h).map(|g| g.cells.len()).map_err(|e| e.to_string())
                     })
                 })?;
-                let grid = cleave_geometry::voxelize(surface, h).map_err(|e| build(&e))?;
+                let mesh_error = |e: &dyn std::fmt::Display| BackendError::Mesh(e.to_string());
+                let grid = cleave_geometry::voxelize(surface, h).map_err(|e| mesh_error(&e))?;
                 let mesh = VoxelMesh::new(request.material, grid.origin, grid.cell_size, &grid.cells)
-                    .map_err(|e| build(&e))?;
+                    .map_err(|e| mesh_error(&e))?;
                 let rest = RestSurface { vertices: surface.vertices.clone(), triangles: surface.triangles.clone() };
                 (mesh, rest)
             }

@@ -261,18 +261,7 @@ impl Simulation {
         let surface = match &scene.object {
             Object::Mesh { path: mesh_path, transform } => {
                 let resolved = path.parent().unwrap_or(Path::new(".")).join(mesh_path);
-                let mesh_error =
-                    |message: String| SceneError::Mesh { scene: path.clone(), mesh: resolved.clone(), message };
-                let file = std::fs::File::open(&resolved).map_err(|e| mesh_error(format!("cannot open: {e}")))?;
-                let mesh = TriangleMesh::from_obj_reader(&mut std::io::BufReader::new(file))
-                    .map_err(|e| mesh_error(e.to_string()))?;
-                mesh.validate_closed().map_err(|e| mesh_error(e.to_string()))?;
-                let mut mesh = mesh.transformed(|p| transform_point(transform, p));
-                if let Some(lowest) = transform.lowest_z {
-                    let shift = lowest - mesh.aabb().0.z;
-                    mesh = mesh.transformed(|p| p + Vector3::new(0.0, 0.0, shift));
-                }
-                Ok((mesh, resolved))
+                Ok((load_obj(&path, mesh_path, transform, None, Closed::Required)?, resolved))
             }
             Object::Box { min, max } => Err((*min, *max)),
         };
@@ -322,12 +311,11 @@ impl Simulation {
                 let (line, column) = position_within(&loaded.text, settings.get_ron(), line, column);
                 SceneError::Parse { path: path.clone(), line, column, message: format!("settings.{name}: {message}") }
             }
-            BackendError::Build(message) => match &surface {
-                Ok((_, resolved)) if message.contains("mesh") || message.contains("volume") => {
-                    SceneError::Mesh { scene: path.clone(), mesh: resolved.clone(), message }
-                }
-                _ => build_error(message),
+            BackendError::Mesh(message) => match &surface {
+                Ok((_, resolved)) => SceneError::Mesh { scene: path.clone(), mesh: resolved.clone(), message },
+                Err(_) => build_error(message),
             },
+            BackendError::Build(message) => build_error(message),
         })?;
         constraints.pinned_dofs = built.pins.pinned_dofs;
         constraints.extra_load = built.pins.extra_load;
@@ -383,7 +371,8 @@ impl Simulation {
                     });
                 }
                 ColliderSpec::Mesh { path: obj, transform, stiffness, damping, friction, reach } => {
-                    let mesh = load_obj(&path, obj, transform, &format!("colliders[{index}]"))?;
+                    let mesh =
+                        load_obj(&path, obj, transform, Some(&format!("colliders[{index}]")), Closed::NotRequired)?;
                     collider_meshes.push(mesh.clone());
                     let reach = nonnegative(
                         &format!("colliders[{index}].reach"),
@@ -918,23 +907,47 @@ impl Simulation {
     }
 }
 
-/// Reads an OBJ named by a scene (relative to the scene file) and places it by `transform`
-/// (`lowest_z` included); errors name the scene, the mesh and `what` (the field).
-fn load_obj(scene: &Path, obj: &str, transform: &Transform, what: &str) -> Result<TriangleMesh, SceneError> {
+/// Whether an OBJ must bound a solid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Closed {
+    /// The object: closed, manifold, outward (`TriangleMesh::validate_closed`).
+    Required,
+    /// Colliders and cut soups: any triangles.
+    NotRequired,
+}
+
+/// The one OBJ loader of scenes: reads an OBJ named by a scene (relative to the scene file),
+/// validates it as a closed surface when `closed` asks, and places it by `transform` (`lowest_z`:
+/// its lowest vertex lands at that height). Errors name the scene, the mesh and `what` (the
+/// field, if not the object).
+fn load_obj(
+    scene: &Path,
+    obj: &str,
+    transform: &Transform,
+    what: Option<&str>,
+    closed: Closed,
+) -> Result<TriangleMesh, SceneError> {
     let resolved = scene.parent().unwrap_or(Path::new(".")).join(obj);
     let mesh_error = |message: String| SceneError::Mesh {
         scene: scene.to_path_buf(),
         mesh: resolved.clone(),
-        message: format!("{what}: {message}"),
+        message: match what {
+            Some(what) => format!("{what}: {message}"),
+            None => message,
+        },
     };
     let file = std::fs::File::open(&resolved).map_err(|e| mesh_error(format!("cannot open: {e}")))?;
     let mesh =
         TriangleMesh::from_obj_reader(&mut std::io::BufReader::new(file)).map_err(|e| mesh_error(e.to_string()))?;
+    if closed == Closed::Required {
+        mesh.validate_closed().map_err(|e| mesh_error(e.to_string()))?;
+    }
     let mut mesh = mesh.transformed(|p| transform_point(transform, p));
     if let Some(z) = transform.lowest_z {
-        let lowest = mesh.vertices.iter().map(|p| p.z).fold(Real::INFINITY, Real::min);
+        let lowest = mesh.aabb().0.z;
         if lowest.is_finite() {
-            mesh = mesh.transformed(|p| Point3::new(p.x, p.y, p.z + z - lowest));
+            let shift = z - lowest;
+            mesh = mesh.transformed(|p| p + Vector3::new(0.0, 0.0, shift));
         }
     }
     Ok(mesh)
@@ -979,7 +992,8 @@ fn prepare_timeline(events: &[EventSpec], scene: &Path) -> Result<Vec<TimedCut>,
                         CutSurface::Plane { point: Point3::from(*point), normal: Vector3::from(normal.0) }
                     }
                     CutSpec::Obj { path: obj, transform } => {
-                        let mesh = load_obj(scene, obj, transform, &format!("timeline[{index}]"))?;
+                        let mesh =
+                            load_obj(scene, obj, transform, Some(&format!("timeline[{index}]")), Closed::NotRequired)?;
                         CutSurface::Triangles(
                             (0..mesh.triangles.len()).filter_map(|t| mesh.triangle_points(t)).collect(),
                         )

@@ -164,3 +164,20 @@ fn a_cut_at_a_time_that_is_not_finite_is_a_clear_build_error() {
         assert!(message.contains("timeline[0]") && message.contains("must be finite"), "{time}: {message}");
     }
 }
+
+#[test]
+fn a_mesh_the_backend_cannot_discretize_names_the_mesh_file() {
+    // A closed unit cube voxelized at 0.1 mm would need 1e12 cells: the backend refuses it as a
+    // mesh error (typed, not guessed from the message), and the scene names the OBJ file.
+    let dir = tempfile::tempdir().unwrap();
+    let obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+               f 1 3 2\nf 1 4 3\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\nf 4 1 5\nf 4 5 8\nf 5 6 7\nf 5 7 8\n";
+    std::fs::write(dir.path().join("cube.obj"), obj).unwrap();
+    let scene = dir.path().join("s.ron");
+    let text = mesh_scene("cube.obj").replace("cell_size: 0.25", "cell_size: 0.0001");
+    let loaded = parse_scene(&scene, &text).unwrap();
+    let error = Simulation::build(&loaded, None).err().expect("must fail");
+    let message = error.to_string();
+    assert!(matches!(error, SceneError::Mesh { .. }), "{message}");
+    assert!(message.contains("cube.obj"), "{message}");
+}
