@@ -1,0 +1,439 @@
+//! Loading a scene file, building what it names (`build.rs`), the timeline (`timeline.rs`), cuts
+//! made ahead on a copy of the body (`cut_ahead.rs`), and here: stepping it and recording every
+//! step.
+
+mod build;
+mod cut_ahead;
+mod timeline;
+
+use build::{Closed, load_obj, surface_contact_on};
+pub use build::{DEFAULT_CONTACT_STIFFNESS, DEFAULT_REACH};
+use cut_ahead::{CutCopy, PreparedCut};
+use timeline::{TimedCut, prepare_timeline};
+
+use crate::record::{RecordError, Recorder};
+use crate::schema::Scene;
+use cleave_core::{CutSurface, Discretization, Embedding, Piece, Point3, Real, Vector3};
+use cleave_integrator::{Constraints, Integrator, StepError, StepReport};
+use cleave_registry::{Backend, Region};
+use serde_json::json;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Everything that can go wrong with a scene, each naming the file it concerns.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The scene file could not be read.
+    #[error("{path}: cannot read scene: {source}")]
+    Read {
+        /// scene path
+        path: PathBuf,
+        /// the I/O error
+        source: std::io::Error,
+    },
+    /// Syntax error, unknown or missing field, or an invalid value.
+    #[error("{path}:{line}:{column}: {message}")]
+    Parse {
+        /// scene path
+        path: PathBuf,
+        /// 1-based line
+        line: usize,
+        /// 1-based column
+        column: usize,
+        /// what is wrong
+        message: String,
+    },
+    /// The mesh file is missing or not a valid closed mesh.
+    #[error("{scene}: mesh {mesh}: {message}")]
+    Mesh {
+        /// scene path
+        scene: PathBuf,
+        /// mesh path as resolved
+        mesh: PathBuf,
+        /// what is wrong
+        message: String,
+    },
+    /// A consistent but unbuildable scene (a capability the backend lacks, an empty pin region…).
+    #[error("{path}: {message}")]
+    Build {
+        /// scene path
+        path: PathBuf,
+        /// what is wrong
+        message: String,
+    },
+    /// A step failed.
+    #[error("{path}: {source}")]
+    Step {
+        /// scene path
+        path: PathBuf,
+        /// the step error
+        source: StepError,
+    },
+    /// Writing the recording failed.
+    #[error(transparent)]
+    Record(#[from] RecordError),
+}
+
+/// A parsed scene and where it came from.
+#[derive(Clone, Debug)]
+pub struct LoadedScene {
+    /// The scene file.
+    pub path: PathBuf,
+    /// Its content.
+    pub scene: Scene,
+    /// Its text (to place errors found later, e.g. in a backend's settings).
+    pub text: String,
+}
+
+/// Reads and parses a scene; errors carry file, line and column.
+pub fn load_scene(path: &Path) -> Result<LoadedScene, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read { path: path.to_path_buf(), source })?;
+    parse_scene(path, &text)
+}
+
+/// Parses scene text (`path` is used for messages and to resolve relative mesh paths).
+pub fn parse_scene(path: &Path, text: &str) -> Result<LoadedScene, SceneError> {
+    // `implicit_some` lets scenes write `cell_size: 0.25` for optional fields.
+    let options = ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
+    match options.from_str::<Scene>(text) {
+        Ok(scene) => Ok(LoadedScene { path: path.to_path_buf(), scene, text: text.to_string() }),
+        Err(error) => Err(SceneError::Parse {
+            path: path.to_path_buf(),
+            line: error.span.start.line,
+            column: error.span.start.col,
+            message: error.code.to_string(),
+        }),
+    }
+}
+
+/// Sizes of what was built.
+#[derive(Clone, Debug, Default)]
+pub struct BuildInfo {
+    /// Backend name.
+    pub backend: String,
+    /// Elements (cubes).
+    pub elements: usize,
+    /// Scalar DOFs.
+    pub dofs: usize,
+    /// Surface vertices rendered.
+    pub surface_vertices: usize,
+    /// Surface triangles rendered.
+    pub surface_triangles: usize,
+    /// Element size [m] (cube edge).
+    pub element_size: Real,
+    /// Seconds spent loading, voxelizing and setting up the solver.
+    pub seconds: Real,
+}
+
+/// A built scene, stepping and recording.
+pub struct Simulation {
+    path: PathBuf,
+    steps: u64,
+    surface_every: u64,
+    /// Shared with a preparation thread while it copies the body (`prepare_next_cut`); changed
+    /// only between steps, when no one else holds it (`body_mut`).
+    discretization: Arc<dyn Discretization>,
+    integrator: Integrator,
+    surface_triangles: Vec<[u32; 3]>,
+    surface_points: Embedding,
+    probe_names: Vec<String>,
+    probes: Embedding,
+    recorder: Option<Recorder>,
+    points: Vec<Point3<Real>>,
+    info: BuildInfo,
+    registration: Box<dyn Backend>,
+    pins: Vec<Region>,
+    /// Contact constraints kept across cuts (the surface contact's triangles are replaced).
+    contact: Constraints,
+    probe_points: Vec<Point3<Real>>,
+    surface_on_cut: Vec<bool>,
+    surface_piece: Vec<u32>,
+    timeline: Vec<TimedCut>,
+    cuts: CutSummary,
+    /// The next timeline `Cut`, being applied to a copy of the body off the step's thread.
+    prepared: Option<PreparedCut>,
+    /// The body a prepared cut replaced, freed by the next preparation's thread (or with the
+    /// simulation, after the last one).
+    retired: Option<Arc<dyn Discretization>>,
+    /// See [`Simulation::set_cut_ahead`].
+    cut_ahead: bool,
+}
+
+/// What cutting did over a run (for the summary table and the recording).
+#[derive(Clone, Debug, Default)]
+pub struct CutSummary {
+    /// Topology changes applied.
+    pub changes: usize,
+    /// Wall-clock seconds in cutting and rebuilding after cuts.
+    pub seconds: Real,
+    /// Total volume and mass at the start [m³, kg] (from the pieces of a cuttable backend).
+    pub initial: (Real, Real),
+    /// The pieces now.
+    pub pieces: Vec<Piece>,
+    /// Wall-clock seconds spent ahead, off the step's thread, on timeline cuts prepared on a
+    /// copy of the body (not in `seconds`).
+    pub prepared_seconds: Real,
+    /// Changes whose cut was prepared ahead.
+    pub prepared: usize,
+    /// Nodes and elements now.
+    pub nodes: usize,
+    /// Elements now (frames).
+    pub elements: usize,
+}
+
+impl CutSummary {
+    /// Relative drift of total volume and mass since the start.
+    pub fn drift(&self) -> (Real, Real) {
+        let volume: Real = self.pieces.iter().map(|p| p.volume).sum();
+        let mass: Real = self.pieces.iter().map(|p| p.mass).sum();
+        let relative = |now: Real, start: Real| if start > 0.0 { (now - start) / start } else { 0.0 };
+        (relative(volume, self.initial.0), relative(mass, self.initial.1))
+    }
+}
+
+impl Simulation {
+    /// What was built.
+    pub fn info(&self) -> &BuildInfo {
+        &self.info
+    }
+
+    /// Steps the scene asks for.
+    pub fn total_steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// Steps done so far.
+    pub fn steps_done(&self) -> u64 {
+        self.integrator.steps_taken()
+    }
+
+    /// The recording path, if recording.
+    pub fn output(&self) -> Option<&Path> {
+        self.recorder.as_ref().map(Recorder::path)
+    }
+
+    /// The current surface vertices.
+    pub fn surface(&mut self) -> &[Point3<Real>] {
+        self.surface_points.evaluate(self.integrator.positions(), &mut self.points);
+        &self.points
+    }
+
+    fn record_surface(&mut self) -> Result<(), SceneError> {
+        if self.recorder.is_none() {
+            return Ok(());
+        }
+        self.surface_points.evaluate(self.integrator.positions(), &mut self.points);
+        let time = self.integrator.time();
+        if let Some(recorder) = self.recorder.as_mut() {
+            recorder.surface(time, &self.points, &self.surface_triangles, &self.surface_on_cut, &self.surface_piece)?;
+        }
+        Ok(())
+    }
+
+    fn record_stats(&mut self, report: &StepReport) -> Result<(), SceneError> {
+        let Some(recorder) = self.recorder.as_mut() else { return Ok(()) };
+        let x = self.integrator.positions();
+        let (mut lo, mut hi, mut sum) = (Real::MAX, Real::MIN, Vector3::zeros());
+        for i in 0..self.surface_points.len() {
+            let p = self.surface_points.point(x, i);
+            lo = lo.min(p.z);
+            hi = hi.max(p.z);
+            sum += p.coords;
+        }
+        let centroid = sum / self.surface_points.len().max(1) as Real;
+        let probes: serde_json::Map<String, serde_json::Value> = self
+            .probe_names
+            .iter()
+            .enumerate()
+            .map(|(i, name)| {
+                let p = self.probes.point(x, i);
+                (name.clone(), json!([p.x, p.y, p.z]))
+            })
+            .collect();
+        let s = &report.seconds;
+        let stats = json!({
+            "step": report.step,
+            "time": self.integrator.time(),
+            "iterations": report.iterations,
+            "residual": report.residual,
+            "seconds": {
+                "rotations": s.rotations, "assembly": s.assembly, "solve": s.solve, "rest": s.rest, "total": s.total(),
+                "contact": s.contact, "pattern": s.pattern, "contact_forces": s.contact_forces,
+            },
+            "energy": {
+                "kinetic": report.kinetic_energy, "elastic": report.elastic_energy,
+                "gravitational": report.gravitational_energy, "penalty": report.penalty_energy,
+                "total": report.total_energy(),
+            },
+            "inverted_elements": report.inverted_elements,
+            "active_contacts": report.active_contacts,
+            "contacts": {
+                "planes": report.contacts.planes, "meshes": report.contacts.meshes,
+                "surface": report.contacts.surface, "edges": report.contacts.edges,
+                "max_penetration": report.contacts.max_penetration,
+                "seconds": report.contacts.seconds,
+            },
+            "surface": { "min_z": lo, "max_z": hi, "centroid": [centroid.x, centroid.y, centroid.z] },
+            "probes": probes,
+        });
+        recorder.stats(self.integrator.time(), &stats)?;
+        Ok(())
+    }
+
+    /// What cutting has done so far.
+    pub fn cut_summary(&self) -> &CutSummary {
+        &self.cuts
+    }
+
+    /// The body, to change between steps. A preparation still holding it (copying it for a
+    /// later cut) is waited for and dropped first: its copy would be of the body before this
+    /// change.
+    fn body_mut(&mut self) -> Result<&mut (dyn Discretization + 'static), SceneError> {
+        if Arc::get_mut(&mut self.discretization).is_none()
+            && let Some(prepared) = self.prepared.take()
+        {
+            let _ = prepared.handle.join();
+        }
+        let path = self.path.clone();
+        Arc::get_mut(&mut self.discretization).ok_or_else(|| SceneError::Build {
+            path,
+            message: "the body is still shared with a cut prepared ahead".into(),
+        })
+    }
+
+    /// Applies a cut between steps: the backend cuts, the integrator carries the state across,
+    /// pins, contact rows, probes and the render surface are resolved again, and the change is
+    /// recorded as a `cut` event.
+    ///
+    /// `prepared`: the same cut already applied to a copy of the body (when the copy was taken,
+    /// the body was what it is now), swapped in instead of cutting.
+    fn apply_cut(&mut self, surface: &CutSurface, prepared: Option<CutCopy>) -> Result<(), SceneError> {
+        let clock = Instant::now();
+        let path = self.path.clone();
+        let build_error = |message: String| SceneError::Build { path: path.clone(), message };
+        let before = (self.discretization.num_nodes(), self.discretization.num_frames(), self.cuts.pieces.len());
+        let epoch = self.discretization.epoch();
+        let mut prepared_contact = None;
+        let (change, surface, pieces, ahead) = match prepared {
+            Some(copy) => {
+                if copy.change.epoch == epoch {
+                    return Ok(());
+                }
+                // Freeing the old body's many small allocations took 13-21 ms on bunny_slice,
+                // and as much on another thread at the same time (the allocator's locks): the
+                // next preparation frees it, off the step's thread and between cuts.
+                self.retired = Some(std::mem::replace(&mut self.discretization, Arc::from(copy.discretization)));
+                prepared_contact = copy.contact;
+                (copy.change, copy.surface, copy.pieces, Some(copy.seconds))
+            }
+            None => {
+                let (backend, time) = (self.info.backend.clone(), self.integrator.time());
+                let cuttable = self
+                    .body_mut()?
+                    .as_cuttable()
+                    .ok_or_else(|| build_error(format!("the {backend} backend cannot cut")))?;
+                let change = cuttable.cut(surface).map_err(|e| build_error(format!("cut at t = {time} s: {e}")))?;
+                if change.epoch == epoch {
+                    return Ok(());
+                }
+                let made = (change, cuttable.surface(), cuttable.pieces(), None);
+                // A preparation copied the body before this change: its copy can no longer be
+                // used, and dropping it lets the next one start.
+                self.prepared = None;
+                made
+            }
+        };
+        let surface = surface.ok_or_else(|| build_error("a cut body must render its own surface".into()))?;
+        let d = self.discretization.as_ref();
+        let pins = self.registration.resolve_pins(d, &self.pins).map_err(|e| build_error(e.to_string()))?;
+        let constraints = Constraints {
+            pinned_dofs: pins.pinned_dofs,
+            extra_load: pins.extra_load,
+            planes: self.contact.planes.clone(),
+            meshes: self.contact.meshes.clone(),
+            surface_contact: self.contact.surface_contact.as_ref().map(|c| surface_contact_on(c, &surface)),
+            ..Default::default()
+        };
+        let constraints = Constraints {
+            contact_points: constraints.has_any_contact().then(|| surface.embedding.clone()),
+            ..constraints
+        };
+        self.integrator
+            .apply_topology_change_prepared(d, &change, constraints, prepared_contact)
+            .map_err(|source| SceneError::Step { path: self.path.clone(), source })?;
+        self.probes = d.embed(&self.probe_points).map_err(|e| build_error(format!("probe after a cut: {e}")))?;
+        self.surface_triangles = surface.triangles;
+        self.surface_on_cut = surface.on_cut;
+        self.surface_piece = surface.piece;
+        self.surface_points = surface.embedding;
+        let seconds = clock.elapsed().as_secs_f64();
+        self.cuts.changes += 1;
+        self.cuts.seconds += seconds;
+        if let Some(ahead) = ahead {
+            self.cuts.prepared += 1;
+            self.cuts.prepared_seconds += ahead;
+        }
+        self.cuts.pieces = pieces;
+        self.cuts.nodes = d.num_nodes();
+        self.cuts.elements = d.num_frames();
+        self.info.dofs = 3 * d.num_nodes();
+        let time = self.integrator.time();
+        if let Some(recorder) = self.recorder.as_mut() {
+            let message = format!(
+                "nodes {} -> {}, elements {} -> {}, pieces {} -> {}, {:.2} ms",
+                before.0,
+                self.cuts.nodes,
+                before.1,
+                self.cuts.elements,
+                before.2,
+                self.cuts.pieces.len(),
+                1e3 * seconds
+            );
+            let message = match ahead {
+                Some(ahead) => format!("{message} (cut and surface made ahead on a copy: {:.2} ms)", 1e3 * ahead),
+                None => message,
+            };
+            recorder.event(time, "cut", &message)?;
+        }
+        Ok(())
+    }
+
+    /// Takes one step (applying the cuts due before it) and records it.
+    pub fn step(&mut self) -> Result<StepReport, SceneError> {
+        let t0 = self.integrator.time();
+        for (event, surface) in self.due_cuts(t0, t0 + self.integrator.settings().time_step) {
+            let prepared = self.take_prepared(event);
+            self.apply_cut(&surface, prepared)?;
+        }
+        let report = self
+            .integrator
+            .step(self.discretization.as_ref())
+            .map_err(|source| SceneError::Step { path: self.path.clone(), source })?;
+        if self.integrator.steps_taken().is_multiple_of(self.surface_every) {
+            self.record_surface()?;
+        }
+        self.record_stats(&report)?;
+        self.prepare_next_cut();
+        Ok(report)
+    }
+
+    /// Triangles of the render surface now (the surface contact searches the same ones).
+    pub fn surface_triangle_count(&self) -> usize {
+        self.surface_triangles.len()
+    }
+
+    /// Ends the run: records the outcome as an event and closes the file.
+    pub fn finish(mut self, failure: Option<&str>) -> Result<(), SceneError> {
+        let time = self.integrator.time();
+        let steps = self.integrator.steps_taken();
+        if let Some(recorder) = self.recorder.as_mut() {
+            match failure {
+                Some(message) => recorder.event(time, "failed", message)?,
+                None => recorder.event(time, "end", &format!("finished {steps} steps"))?,
+            }
+            recorder.finish()?;
+        }
+        Ok(())
+    }
+}
