@@ -160,11 +160,13 @@ pub struct EmbeddedSurface {
     pub embedding: Embedding,
 }
 
-/// A connected component of a discretization.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// A connected component of a discretization: the one piece type of every backend.
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Piece {
-    /// Elements (duplicates, polyhedra, cubes) in it.
-    pub elements: usize,
+    /// Its elements (duplicates, polyhedra, cubes: frame indices), ascending.
+    pub elements: Vec<u32>,
+    /// Its nodes, ascending.
+    pub nodes: Vec<u32>,
     /// Material volume [m³].
     pub volume: Real,
     /// Mass [kg].

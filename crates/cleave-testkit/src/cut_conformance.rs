@@ -288,7 +288,10 @@ fn run_bytes(subject: &CutSubject<'_>) -> Vec<u64> {
         bytes.extend(surface.triangles.iter().flat_map(|t| t.map(u64::from)));
         bytes.extend(surface.piece.iter().map(|&p| u64::from(p)));
     }
-    bytes.extend(body.pieces().iter().flat_map(|p| [p.elements as u64, p.volume.to_bits(), p.mass.to_bits()]));
+    for p in body.pieces() {
+        bytes.extend(p.elements.iter().chain(&p.nodes).map(|&k| u64::from(k)));
+        bytes.extend([p.volume.to_bits(), p.mass.to_bits()]);
+    }
     bytes
 }
 

@@ -9,7 +9,7 @@ use crate::tet::{TetRule, TetShape};
 use cleave_core::rotation::extract_rotation;
 use cleave_core::{
     BlockSet, BlockSetBuilder, CutSurface, Cuttable, Discretization, DofRemap, EmbedError, Embedding, FieldSample,
-    FrameRemap, Mass, Material, Matrix3, Point3, Real, RotationStats, TopologyChange, TopologyError, Vector3,
+    FrameRemap, Mass, Material, Matrix3, Piece, Point3, Real, RotationStats, TopologyChange, TopologyError, Vector3,
 };
 use cleave_geometry::arrangement::{Arrangement, Cover, OVERLAP_TOLERANCE, TET_FACES};
 use cleave_geometry::predicates::{convex_overlap_area, largest_component, project};
@@ -152,19 +152,6 @@ fn for_each_cell_point(cells: &Arrangement, rule: &TetRule, visit: &mut dyn FnMu
             }
         }
     }
-}
-
-/// A connected piece of material (a component of the duplicates linked by shared nodes).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Piece {
-    /// Its duplicates (element / frame indices).
-    pub duplicates: Vec<u32>,
-    /// Its nodes.
-    pub nodes: Vec<u32>,
-    /// Material volume.
-    pub volume: Real,
-    /// Mass (density × volume).
-    pub mass: Real,
 }
 
 /// Statistics of the last topology change.
@@ -573,10 +560,10 @@ impl VirtualNodeMesh {
         for (i, d) in self.duplicates.iter().enumerate() {
             let root = uf.find(d.nodes[0] as usize);
             let k = *index.entry(root).or_insert_with(|| {
-                pieces.push(Piece { duplicates: Vec::new(), nodes: Vec::new(), volume: 0.0, mass: 0.0 });
+                pieces.push(Piece::default());
                 pieces.len() - 1
             });
-            pieces[k].duplicates.push(i as u32);
+            pieces[k].elements.push(i as u32);
             pieces[k].volume += d.volume;
         }
         for node in 0..n {
@@ -946,7 +933,7 @@ impl Cuttable for VirtualNodeMesh {
         let surface = self.render_surface();
         let mut piece_of_duplicate = vec![0u32; self.num_duplicates()];
         for (k, piece) in VirtualNodeMesh::pieces(self).iter().enumerate() {
-            for &d in &piece.duplicates {
+            for &d in &piece.elements {
                 piece_of_duplicate[d as usize] = k as u32;
             }
         }
@@ -959,11 +946,8 @@ impl Cuttable for VirtualNodeMesh {
         })
     }
 
-    fn pieces(&self) -> Vec<cleave_core::Piece> {
+    fn pieces(&self) -> Vec<Piece> {
         VirtualNodeMesh::pieces(self)
-            .into_iter()
-            .map(|p| cleave_core::Piece { elements: p.duplicates.len(), volume: p.volume, mass: p.mass })
-            .collect()
     }
 }
 

@@ -536,7 +536,7 @@ impl VirtualNodeMesh {
         let pieces = self.pieces();
         let mut piece_of_duplicate = vec![0u32; self.num_duplicates()];
         for (k, piece) in pieces.iter().enumerate() {
-            for &d in &piece.duplicates {
+            for &d in &piece.elements {
                 piece_of_duplicate[d as usize] = k as u32;
             }
         }
@@ -675,7 +675,7 @@ impl VirtualNodeMesh {
             }
         }
         for (k, piece) in pieces.iter().enumerate() {
-            for &d in &piece.duplicates {
+            for &d in &piece.elements {
                 refs_of_piece[k].extend((0..entries[d as usize].len() as u32).map(|e| EntryRef::Duplicate(d, e)));
             }
         }

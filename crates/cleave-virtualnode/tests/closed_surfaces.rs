@@ -20,7 +20,7 @@ fn defects(mesh: &VirtualNodeMesh, h: Real) -> (usize, usize) {
     let s = mesh.render_surface();
     let mut piece_of = vec![0usize; mesh.num_duplicates()];
     for (k, piece) in mesh.pieces().iter().enumerate() {
-        for &d in &piece.duplicates {
+        for &d in &piece.elements {
             piece_of[d as usize] = k;
         }
     }

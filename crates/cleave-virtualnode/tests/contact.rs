@@ -121,7 +121,7 @@ fn pieces_thrown_at_each_other_conserve_momentum() {
     let pieces = mesh.pieces();
     assert_eq!(pieces.len(), 2);
     let rest = mesh.rest_dofs().to_vec();
-    let mean_x = |p: &cleave_virtualnode::Piece| {
+    let mean_x = |p: &cleave_core::Piece| {
         p.nodes.iter().map(|&n| rest[3 * n as usize]).sum::<Real>() / p.nodes.len() as Real
     };
     let right_piece = if mean_x(&pieces[0]) > mean_x(&pieces[1]) { 0 } else { 1 };
@@ -429,7 +429,7 @@ fn crossed_bars(edges: bool) -> Real {
     let pieces = mesh.pieces();
     assert_eq!(pieces.len(), 2);
     let rest = mesh.rest_dofs().to_vec();
-    let is_lower = |p: &cleave_virtualnode::Piece| {
+    let is_lower = |p: &cleave_core::Piece| {
         p.nodes.iter().map(|&n| rest[3 * n as usize + 2]).sum::<Real>() / (p.nodes.len() as Real) < 0.1
     };
     let lower = if is_lower(&pieces[0]) { 0 } else { 1 };

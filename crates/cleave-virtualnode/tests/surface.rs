@@ -23,7 +23,7 @@ fn check_pieces(mesh: &VirtualNodeMesh) -> Vec<PieceReport> {
     let pieces = mesh.pieces();
     let mut piece_of_dup = vec![0; mesh.num_duplicates()];
     for (k, p) in pieces.iter().enumerate() {
-        for &d in &p.duplicates {
+        for &d in &p.elements {
             piece_of_dup[d as usize] = k;
         }
     }
