@@ -448,7 +448,9 @@ fn run(
         for (k, piece) in cuts.pieces.iter().enumerate() {
             println!(
                 "piece {k}: {} elements, volume {:.6e} m³, mass {:.6e} kg",
-                piece.elements.len(), piece.volume, piece.mass
+                piece.elements.len(),
+                piece.volume,
+                piece.mass
             );
         }
     }

@@ -8,8 +8,30 @@
 //! is the SVD polar decomposition with the reflection moved to the smallest singular value; tests
 //! check that both agree.
 
-use crate::Real;
+use crate::{Real, RotationStats};
 use nalgebra::{Matrix3, Rotation3, Unit, UnitQuaternion};
+use rayon::prelude::*;
+
+/// Every frame's rotation from its deformation gradient `gradient(frame)`, warm-started from the
+/// rotation in `rotations` and written over it, in parallel over the frames; counts the frames
+/// whose gradient is inverted (det F ≤ 0). What `Discretization::write_rotations` does for every
+/// backend; only how a frame's gradient is measured differs.
+pub fn write_frame_rotations(
+    rotations: &mut [Matrix3<Real>],
+    max_iterations: usize,
+    gradient: impl Fn(usize) -> Matrix3<Real> + Sync,
+) -> RotationStats {
+    let inverted = rotations
+        .par_iter_mut()
+        .enumerate()
+        .map(|(frame, r)| {
+            let f = gradient(frame);
+            *r = extract_rotation(&f, r, max_iterations);
+            usize::from(f.determinant() <= 0.0)
+        })
+        .sum();
+    RotationStats { inverted }
+}
 
 /// Rotation that maximises tr(Rᵀ F), starting from `warm_start` (the previous rotation, or the
 /// identity). Always a proper rotation (det R = +1), never NaN for finite F.

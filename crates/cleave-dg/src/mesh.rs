@@ -4,7 +4,6 @@
 
 use crate::basis::{ElementBasis, add, basis_size, exponents, index, shifted_monomial};
 use crate::quadrature::{polygon_rule, polyhedron_rule};
-use cleave_core::rotation::extract_rotation;
 use cleave_core::{
     AssemblyPattern, BlockRanks, BlockSet, BlockSetBuilder, BlockSetError, CholeskyError, Discretization, EmbedError,
     Embedding, FieldSample, Mass, Material, Matrix3, Point3, Real, RotationStats, SparseCholesky, Vector3,
@@ -836,21 +835,15 @@ impl Discretization for DgMesh {
 
     fn write_rotations(&self, x: &[Real], rotations: &mut [Matrix3<Real>]) -> RotationStats {
         let nb = self.exps.len();
-        let inverted = rotations
-            .par_iter_mut()
-            .enumerate()
-            .map(|(e, r)| {
-                let mut f = Matrix3::zeros();
-                for i in 0..nb {
-                    let node = e * nb + i;
-                    let d = Vector3::new(x[3 * node], x[3 * node + 1], x[3 * node + 2]);
-                    f += d * self.rotation_gradients[node].transpose();
-                }
-                *r = extract_rotation(&f, r, 20);
-                usize::from(f.determinant() <= 0.0)
-            })
-            .sum();
-        RotationStats { inverted }
+        cleave_core::rotation::write_frame_rotations(rotations, 20, |e| {
+            let mut f = Matrix3::zeros();
+            for i in 0..nb {
+                let node = e * nb + i;
+                let d = Vector3::new(x[3 * node], x[3 * node + 1], x[3 * node + 2]);
+                f += d * self.rotation_gradients[node].transpose();
+            }
+            f
+        })
     }
 
     fn blocks(&self) -> &BlockSet {

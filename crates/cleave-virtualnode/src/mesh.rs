@@ -6,7 +6,7 @@
 use crate::FastMap;
 use crate::lattice::{BccLattice, LatticeTetCorners, number_nodes};
 use crate::tet::{TetRule, TetShape};
-use cleave_core::rotation::extract_rotation;
+use cleave_core::rotation::write_frame_rotations;
 use cleave_core::{
     BlockSet, BlockSetBuilder, CutSurface, Cuttable, Discretization, DofRemap, EmbedError, Embedding, FieldSample,
     FrameRemap, Mass, Material, Matrix3, Piece, Point3, Real, RotationStats, TopologyChange, TopologyError, Vector3,
@@ -825,16 +825,7 @@ impl Discretization for VirtualNodeMesh {
     }
 
     fn write_rotations(&self, x: &[Real], rotations: &mut [Matrix3<Real>]) -> RotationStats {
-        let inverted = rotations
-            .par_iter_mut()
-            .enumerate()
-            .map(|(d, r)| {
-                let f = self.gradient(d, x);
-                *r = extract_rotation(&f, r, ROTATION_ITERATIONS);
-                usize::from(f.determinant() <= 0.0)
-            })
-            .sum();
-        RotationStats { inverted }
+        write_frame_rotations(rotations, ROTATION_ITERATIONS, |d| self.gradient(d, x))
     }
 
     fn blocks(&self) -> &BlockSet {

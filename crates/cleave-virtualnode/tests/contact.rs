@@ -121,9 +121,8 @@ fn pieces_thrown_at_each_other_conserve_momentum() {
     let pieces = mesh.pieces();
     assert_eq!(pieces.len(), 2);
     let rest = mesh.rest_dofs().to_vec();
-    let mean_x = |p: &cleave_core::Piece| {
-        p.nodes.iter().map(|&n| rest[3 * n as usize]).sum::<Real>() / p.nodes.len() as Real
-    };
+    let mean_x =
+        |p: &cleave_core::Piece| p.nodes.iter().map(|&n| rest[3 * n as usize]).sum::<Real>() / p.nodes.len() as Real;
     let right_piece = if mean_x(&pieces[0]) > mean_x(&pieces[1]) { 0 } else { 1 };
     // Apart by 2 cm and offset sideways (an oblique impact that sets them spinning), closing at
     // 2 m/s; no gravity, no ground.

@@ -7,7 +7,6 @@
 
 use crate::stiffness::{corner_offset, corner_signs, cube_stiffness};
 use cleave_core::quadrature::gauss_legendre;
-use cleave_core::rotation::extract_rotation;
 use cleave_core::{
     BlockSet, BlockSetBuilder, CoarseSpace, Discretization, DofRemap, EmbedError, Embedding, FieldSample, FrameRemap,
     Mass, Material, Matrix3, Point3, Real, RotationStats, TopologyChange, Vector3,
@@ -494,17 +493,9 @@ impl Discretization for VoxelMesh {
     }
 
     fn write_rotations(&self, x: &[Real], rotations: &mut [Matrix3<Real>]) -> RotationStats {
-        use rayon::prelude::*;
-        let inverted = rotations
-            .par_iter_mut()
-            .enumerate()
-            .map(|(cube, r)| {
-                let f = self.center_gradient(cube, x);
-                *r = extract_rotation(&f, r, ROTATION_ITERATIONS);
-                usize::from(f.determinant() <= 0.0)
-            })
-            .sum();
-        RotationStats { inverted }
+        cleave_core::rotation::write_frame_rotations(rotations, ROTATION_ITERATIONS, |cube| {
+            self.center_gradient(cube, x)
+        })
     }
 
     fn blocks(&self) -> &BlockSet {
