@@ -45,6 +45,18 @@ pub struct ElementFace<'a> {
 }
 
 impl PolyhedralMesh {
+    /// The boundary faces (those without an outer element) fanned into triangles over the
+    /// vertices, oriented as the faces are (outward).
+    pub fn boundary_triangles(&self) -> Vec<[u32; 3]> {
+        let mut triangles = Vec::new();
+        for face in self.faces.iter().filter(|f| f.outer.is_none()) {
+            for k in 1..face.polygon.len().saturating_sub(1) {
+                triangles.push([face.polygon[0], face.polygon[k], face.polygon[k + 1]]);
+            }
+        }
+        triangles
+    }
+
     /// Area of a planar polygon of this mesh's vertices (Newell's formula about its first vertex,
     /// so small faces far from the origin keep their precision).
     pub fn polygon_area(&self, polygon: &[u32]) -> f64 {
@@ -141,5 +153,20 @@ fn oriented_face(mut polygon: Vec<u32>, plane: usize, n: usize, cell: impl Fn(us
         PolyFace { polygon, inner: cell(n - 1), outer: None }
     } else {
         PolyFace { polygon, inner: cell(plane - 1), outer: Some(cell(plane)) }
+    }
+}
+
+#[cfg(test)]
+mod boundary_tests {
+    use super::*;
+
+    #[test]
+    fn the_boundary_of_a_polyhedral_grid_is_closed_outward_and_encloses_it() {
+        let grid = PolyhedralMesh::grid(Point3::new(-1.0, 0.5, 2.0), 0.25, [3, 2, 1]);
+        let surface = crate::TriangleMesh::new(grid.vertices.clone(), grid.boundary_triangles());
+        // 2·(3·2 + 3·1 + 2·1) = 22 boundary quads, two triangles each.
+        assert_eq!(surface.triangles.len(), 44);
+        surface.validate_closed().unwrap();
+        assert!((surface.signed_volume() - 6.0 * 0.25f64.powi(3)).abs() < 1e-12);
     }
 }

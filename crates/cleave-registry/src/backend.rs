@@ -52,15 +52,6 @@ pub struct SolidRequest<'a> {
     pub pins: &'a [Region],
 }
 
-/// A render surface in rest space: triangles over vertices, and which triangles lie on a cut.
-#[derive(Clone, Debug, Default)]
-pub struct RestSurface {
-    /// Vertex positions in rest space.
-    pub vertices: Vec<Point3<Real>>,
-    /// Outward triangles.
-    pub triangles: Vec<[u32; 3]>,
-}
-
 /// Pins resolved on a discretization: strongly pinned DOFs and/or a weak boundary load.
 #[derive(Clone, Debug, Default)]
 pub struct ResolvedPins {
@@ -80,8 +71,8 @@ pub struct BuiltSolid {
     pub element_size: Real,
     /// The pins, resolved.
     pub pins: ResolvedPins,
-    /// The surface to render (the input mesh, or the box's boundary).
-    pub surface: RestSurface,
+    /// The surface to render in rest space (the input mesh, or the box's boundary).
+    pub surface: TriangleMesh,
 }
 
 /// What a backend can do beyond simulating.

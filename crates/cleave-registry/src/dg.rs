@@ -3,8 +3,8 @@
 //! Dirichlet region), handed over as a load vector; no DOF is pinned.
 
 use crate::backend::{
-    Backend, BackendError, BuiltSolid, Region, ResolvedPins, RestSurface, Shape, SolidRequest, box_dims, cell_size_for,
-    one_size, parse_settings,
+    Backend, BackendError, BuiltSolid, Region, ResolvedPins, Shape, SolidRequest, box_dims, cell_size_for, one_size,
+    parse_settings,
 };
 use cleave_core::{Discretization, Material, Matrix3, Point3, Real, Vector3};
 use cleave_dg::{DgMesh, DgOptions, Flux, WeakDirichlet};
@@ -154,7 +154,7 @@ impl Backend for DgBackend {
                     })
                 })?;
                 let slicing = cleave_geometry::hex_slice(surface, h).map_err(|e| BackendError::Mesh(e.to_string()))?;
-                let rest = RestSurface { vertices: surface.vertices.clone(), triangles: surface.triangles.clone() };
+                let rest = surface.clone();
                 (slicing.mesh, h, rest)
             }
             Shape::Box { min, max } => {
@@ -163,8 +163,8 @@ impl Backend for DgBackend {
                     .ok_or_else(|| BackendError::Build("a Box object needs dg settings with `cell_size`".into()))?;
                 let dims = box_dims(&min, &max, h)?;
                 let grid = PolyhedralMesh::grid(Point3::from(min), h, dims);
-                let triangles = polyhedral_boundary(&grid);
-                let rest = RestSurface { vertices: grid.vertices.clone(), triangles };
+                let triangles = grid.boundary_triangles();
+                let rest = cleave_geometry::TriangleMesh::new(grid.vertices.clone(), triangles);
                 (grid, h, rest)
             }
         };
@@ -216,15 +216,4 @@ impl Backend for DgBackend {
             Err(BackendError::Build("dg resolves its weak pins only when the mesh is built".into()))
         }
     }
-}
-
-/// The boundary faces of a polyhedral mesh as fan triangles over its vertices, outward.
-fn polyhedral_boundary(mesh: &PolyhedralMesh) -> Vec<[u32; 3]> {
-    let mut triangles = Vec::new();
-    for face in mesh.faces.iter().filter(|f| f.outer.is_none()) {
-        for k in 1..face.polygon.len().saturating_sub(1) {
-            triangles.push([face.polygon[0], face.polygon[k], face.polygon[k + 1]]);
-        }
-    }
-    triangles
 }

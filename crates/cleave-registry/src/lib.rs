@@ -9,9 +9,7 @@ mod dg;
 mod virtualnode;
 mod voxel;
 
-pub use backend::{
-    Backend, BackendError, BuiltSolid, Capabilities, Region, ResolvedPins, RestSurface, Shape, SolidRequest,
-};
+pub use backend::{Backend, BackendError, BuiltSolid, Capabilities, Region, ResolvedPins, Shape, SolidRequest};
 pub use dg::DgBackend;
 pub use virtualnode::{SLIVER_OFFSET, VirtualNodeBackend, sliver_beam};
 pub use voxel::{VoxelBackend, covered_faces};

@@ -5,9 +5,7 @@
 //! every duplicate whose region has a face on the Dirichlet boundary ([`carved_dirichlet`]),
 //! virtual nodes outside the box included.
 
-use crate::backend::{
-    Backend, BackendError, BuiltSolid, RestSurface, Shape, SolidRequest, cell_size_for, one_size, parse_settings,
-};
+use crate::backend::{Backend, BackendError, BuiltSolid, Shape, SolidRequest, cell_size_for, one_size, parse_settings};
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real};
 use cleave_testkit::compare::{
     BoxGrid, BuildError, BuiltProblem, CompareBackend, CutError, CutProblem, DirichletSpec, ExtremeCase, NotApplicable,
@@ -57,7 +55,7 @@ impl Backend for VirtualNodeBackend {
         let elements = mesh.num_duplicates();
         // The scene renders the backend's own surface (`Cuttable::surface`); this one is only
         // the input's, for reports.
-        let rest = RestSurface { vertices: surface.vertices.clone(), triangles: surface.triangles.clone() };
+        let rest = surface.clone();
         Ok(BuiltSolid { discretization: Box::new(mesh), elements, element_size: h, pins, surface: rest })
     }
 }

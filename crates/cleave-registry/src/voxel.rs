@@ -5,8 +5,7 @@
 //! cracked hexahedral grid of benchmarks.md §5; scenes cannot cut it yet.
 
 use crate::backend::{
-    Backend, BackendError, BuiltSolid, RestSurface, Shape, SolidRequest, box_dims, cell_size_for, one_size,
-    parse_settings,
+    Backend, BackendError, BuiltSolid, Shape, SolidRequest, box_dims, cell_size_for, one_size, parse_settings,
 };
 use cleave_core::{CutSurface, Discretization, Material, Point3, Real};
 use cleave_testkit::compare::{
@@ -193,7 +192,7 @@ impl Backend for VoxelBackend {
                 let grid = cleave_geometry::voxelize(surface, h).map_err(|e| mesh_error(&e))?;
                 let mesh = VoxelMesh::new(request.material, grid.origin, grid.cell_size, &grid.cells)
                     .map_err(|e| mesh_error(&e))?;
-                let rest = RestSurface { vertices: surface.vertices.clone(), triangles: surface.triangles.clone() };
+                let rest = surface.clone();
                 (mesh, rest)
             }
             Shape::Box { min, max } => {
@@ -202,44 +201,13 @@ impl Backend for VoxelBackend {
                     .ok_or_else(|| BackendError::Build("a Box object needs voxel settings with `cell_size`".into()))?;
                 let dims = box_dims(&min, &max, h)?;
                 let mesh = VoxelMesh::from_box(request.material, Point3::from(min), h, dims).map_err(|e| build(&e))?;
-                let triangles = voxel_boundary(&mesh);
+                let triangles = mesh.boundary_triangles();
                 let vertices = mesh.rest_dofs().chunks(3).map(|p| Point3::new(p[0], p[1], p[2])).collect();
-                (mesh, RestSurface { vertices, triangles })
+                (mesh, cleave_geometry::TriangleMesh::new(vertices, triangles))
             }
         };
         let pins = self.resolve_pins(&mesh, request.pins)?;
         let (elements, element_size) = (mesh.num_cubes(), mesh.cell_size());
         Ok(BuiltSolid { discretization: Box::new(mesh), elements, element_size, pins, surface })
     }
-}
-
-/// The boundary faces of a voxel mesh as triangles over its nodes, outward oriented.
-fn voxel_boundary(mesh: &VoxelMesh) -> Vec<[u32; 3]> {
-    // For each axis and side: the four corners of that face (bit `axis` fixed), in cyclic order.
-    let mut triangles = Vec::new();
-    for (cube, cell) in mesh.cells().iter().enumerate() {
-        for axis in 0..3 {
-            for side in [0, 1] {
-                let mut neighbour = *cell;
-                neighbour[axis] += if side == 1 { 1 } else { -1 };
-                if mesh.cube_at(neighbour).is_some() {
-                    continue;
-                }
-                let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-                let corner = |a: usize, b: usize| (side << axis) | (a << u) | (b << v);
-                let quad = [corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)];
-                let nodes = quad.map(|c| mesh.cube_nodes()[cube][c]);
-                // (u, v, axis) is right-handed, so the cyclic order above faces +axis; flip it on
-                // the minus side.
-                if side == 1 {
-                    triangles.push([nodes[0], nodes[1], nodes[2]]);
-                    triangles.push([nodes[0], nodes[2], nodes[3]]);
-                } else {
-                    triangles.push([nodes[0], nodes[2], nodes[1]]);
-                    triangles.push([nodes[0], nodes[3], nodes[2]]);
-                }
-            }
-        }
-    }
-    triangles
 }

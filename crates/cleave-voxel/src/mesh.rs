@@ -104,6 +104,38 @@ pub struct VoxelMesh {
 }
 
 impl VoxelMesh {
+    /// The boundary faces (cube faces without a neighbour) as triangles over the nodes, two per
+    /// face, outward oriented.
+    pub fn boundary_triangles(&self) -> Vec<[u32; 3]> {
+        // For each axis and side: the four corners of that face (bit `axis` fixed), in cyclic order.
+        let mut triangles = Vec::new();
+        for (cube, cell) in self.cells().iter().enumerate() {
+            for axis in 0..3 {
+                for side in [0, 1] {
+                    let mut neighbour = *cell;
+                    neighbour[axis] += if side == 1 { 1 } else { -1 };
+                    if self.cube_at(neighbour).is_some() {
+                        continue;
+                    }
+                    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+                    let corner = |a: usize, b: usize| (side << axis) | (a << u) | (b << v);
+                    let quad = [corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)];
+                    let nodes = quad.map(|c| self.cube_nodes()[cube][c]);
+                    // (u, v, axis) is right-handed, so the cyclic order above faces +axis; flip it on
+                    // the minus side.
+                    if side == 1 {
+                        triangles.push([nodes[0], nodes[1], nodes[2]]);
+                        triangles.push([nodes[0], nodes[2], nodes[3]]);
+                    } else {
+                        triangles.push([nodes[0], nodes[2], nodes[1]]);
+                        triangles.push([nodes[0], nodes[3], nodes[2]]);
+                    }
+                }
+            }
+        }
+        triangles
+    }
+
     /// Builds the mesh of the cubes `[origin + h·c, origin + h·(c+1)]` for `c ∈ cells`.
     pub fn new(material: Material, origin: Point3<Real>, h: Real, cells: &[[i32; 3]]) -> Result<Self, VoxelError> {
         Self::with_cut_faces(material, origin, h, cells, &[])
@@ -601,5 +633,23 @@ impl Discretization for VoxelMesh {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod boundary_tests {
+    use super::*;
+
+    #[test]
+    fn the_boundary_of_an_l_shaped_voxel_body_is_closed_outward_and_encloses_its_cubes() {
+        let material = Material::new(1e5, 0.3, 1000.0).unwrap();
+        let cells = [[0, 0, 0], [1, 0, 0], [0, 1, 0]];
+        let mesh = VoxelMesh::new(material, Point3::new(0.3, -0.2, 1.0), 0.5, &cells).unwrap();
+        let vertices: Vec<Point3<Real>> = mesh.rest_dofs().chunks(3).map(|p| Point3::new(p[0], p[1], p[2])).collect();
+        let surface = cleave_geometry::TriangleMesh::new(vertices, mesh.boundary_triangles());
+        // Three cubes expose 3·6 − 2·2 = 14 faces, two triangles each.
+        assert_eq!(surface.triangles.len(), 28);
+        surface.validate_closed().unwrap();
+        assert!((surface.signed_volume() - 3.0 * 0.125).abs() < 1e-12, "{}", surface.signed_volume());
     }
 }

@@ -108,7 +108,7 @@ impl Simulation {
         constraints.extra_load = built.pins.extra_load;
         let mut discretization = built.discretization;
         let (element_count, element_size) = (built.elements, built.element_size);
-        let (surface_vertices, mut surface_triangles) = (built.surface.vertices, built.surface.triangles);
+        let TriangleMesh { vertices: surface_vertices, triangles: mut surface_triangles, .. } = built.surface;
         let mut surface_on_cut = vec![false; surface_triangles.len()];
         let mut surface_piece = Vec::new();
         let cut_surface = discretization.as_cuttable().and_then(|c| c.surface());
