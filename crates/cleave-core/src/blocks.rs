@@ -298,35 +298,32 @@ impl BlockSet {
     }
 
     /// `½ Σ_b (Rᵀ x_b − X_b)ᵀ K (Rᵀ x_b − X_b)` (anchored blocks: `aᵀ H b`, module docs).
+    /// Summed with the same bits on any thread count ([`crate::reduce::deterministic_sum`]).
     pub fn elastic_energy(&self, rotations: &[Matrix3<Real>], x: &[Real], rest: &[Real]) -> Real {
-        use rayon::prelude::*;
-        (0..self.len())
-            .into_par_iter()
-            .map(|b| {
-                let block = self.block(b);
-                let r = Self::rotation(rotations, block.frame);
-                let n = 3 * block.nodes.len();
-                let mut local = [0.0; 3 * MAX_BLOCK_NODES];
-                corotated_displacement(&r, block.nodes, x, rest, self.translation_invariant, &mut local[..n]);
-                let (k, left, scale) = match block.anchor {
-                    None => (block.rest, local, 0.5),
-                    Some(h) => {
-                        let mut anchored = [0.0; 3 * MAX_BLOCK_NODES];
-                        rotated_displacement(&r, block.nodes, x, rest, &mut anchored[..n]);
-                        (h, anchored, 1.0)
-                    }
-                };
-                let mut e = 0.0;
-                for col in 0..n {
-                    let mut kv = 0.0;
-                    for row in 0..n {
-                        kv += left[row] * k[(row, col)];
-                    }
-                    e += kv * local[col];
+        crate::reduce::deterministic_sum(self.len(), |b| {
+            let block = self.block(b);
+            let r = Self::rotation(rotations, block.frame);
+            let n = 3 * block.nodes.len();
+            let mut local = [0.0; 3 * MAX_BLOCK_NODES];
+            corotated_displacement(&r, block.nodes, x, rest, self.translation_invariant, &mut local[..n]);
+            let (k, left, scale) = match block.anchor {
+                None => (block.rest, local, 0.5),
+                Some(h) => {
+                    let mut anchored = [0.0; 3 * MAX_BLOCK_NODES];
+                    rotated_displacement(&r, block.nodes, x, rest, &mut anchored[..n]);
+                    (h, anchored, 1.0)
                 }
-                scale * e
-            })
-            .sum()
+            };
+            let mut e = 0.0;
+            for col in 0..n {
+                let mut kv = 0.0;
+                for row in 0..n {
+                    kv += left[row] * k[(row, col)];
+                }
+                e += kv * local[col];
+            }
+            scale * e
+        })
     }
 
     /// `diag[node] += s · Σ_b (R K Rᵀ)_{node,node}`: the 3×3 diagonal blocks (block Jacobi).

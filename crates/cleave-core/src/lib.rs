@@ -13,6 +13,7 @@ pub mod embedding;
 pub mod mass;
 pub mod material;
 pub mod quadrature;
+pub mod reduce;
 pub mod rotation;
 pub mod scatter;
 

@@ -594,7 +594,9 @@ impl Integrator {
             time: self.time,
             kinetic_energy: discretization.mass().kinetic_energy(&self.v),
             elastic_energy: discretization.elastic_energy(&self.rotations, &self.x),
-            gravitational_energy: -self.external_force.par_iter().zip(&self.x).map(|(f, x)| f * x).sum::<Real>(),
+            gravitational_energy: -cleave_core::reduce::deterministic_sum(self.x.len(), |i| {
+                self.external_force[i] * self.x[i]
+            }),
             inverted_elements: self.last_inverted,
             ..Default::default()
         };
