@@ -26,7 +26,7 @@ mod tests {
     #[test]
     fn the_sum_has_the_same_bits_on_one_and_on_two_threads_and_is_the_sum() {
         // Terms of mixed magnitude, whose float sum depends on the order of addition.
-        let term = |i: usize| ((i as Real * 0.7548776662).sin() * 10f64.powi((i % 17) as i32 - 8));
+        let term = |i: usize| (i as Real * 0.7548776662).sin() * 10f64.powi((i % 17) as i32 - 8);
         let len = 100_003;
         let on = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
