@@ -6,7 +6,7 @@
 use cleave_core::{Discretization, Material, Point3, Real, Vector3};
 use cleave_dg::{DgMesh, DgOptions, Flux, WeakDirichlet};
 use cleave_geometry::PolyhedralMesh;
-use cleave_testkit::problems::{Manufactured, cantilever, field_errors, on_unit_cube_boundary, rate};
+use cleave_testkit::problems::{Manufactured, cantilever, field_errors, on_unit_cube_boundary, refinement_rates};
 
 fn manufactured_errors(case: Manufactured, flux: Flux, degree: usize, n: usize) -> (Real, Real) {
     let material = Material::new(1e6, 0.3, 1000.0).unwrap();
@@ -24,23 +24,9 @@ fn manufactured_errors(case: Manufactured, flux: Flux, degree: usize, n: usize) 
 
 fn rates(case: Manufactured, flux: Flux, degree: usize, sizes: &[usize]) -> Vec<(Real, Real, Real, Real)> {
     let errors: Vec<(Real, Real)> = sizes.iter().map(|&n| manufactured_errors(case, flux, degree, n)).collect();
-    let mut out = Vec::new();
-    for w in 0..sizes.len() - 1 {
-        let (h0, h1) = (1.0 / sizes[w] as Real, 1.0 / sizes[w + 1] as Real);
-        let l2 = rate(errors[w].0, errors[w + 1].0, h0, h1);
-        let h1_rate = rate(errors[w].1, errors[w + 1].1, h0, h1);
-        println!(
-            "{case:?} {flux:?} p={degree} n={}→{}: L2 {:.3e}→{:.3e} rate {l2:.3}, H1 {:.3e}→{:.3e} rate {h1_rate:.3}",
-            sizes[w],
-            sizes[w + 1],
-            errors[w].0,
-            errors[w + 1].0,
-            errors[w].1,
-            errors[w + 1].1
-        );
-        out.push((errors[w + 1].0, errors[w + 1].1, l2, h1_rate));
-    }
-    out
+    let label = format!("{case:?} {flux:?} p={degree}");
+    let rates = refinement_rates(&label, sizes, &errors);
+    rates.into_iter().enumerate().map(|(w, (l2, h1))| (errors[w + 1].0, errors[w + 1].1, l2, h1)).collect()
 }
 
 #[test]

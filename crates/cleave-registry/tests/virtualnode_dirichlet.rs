@@ -10,7 +10,7 @@ use cleave_core::{Material, Point3, Real};
 use cleave_integrator::solve_static;
 use cleave_registry::{Region, Shape, SolidRequest, find};
 use cleave_testkit::compare::{BuiltProblem, DirichletSpec, Problem};
-use cleave_testkit::problems::{Manufactured, field_errors, on_unit_cube_boundary, rate};
+use cleave_testkit::problems::{Manufactured, field_errors, on_unit_cube_boundary, refinement_rates};
 
 fn build(case: Manufactured, n: usize) -> BuiltProblem {
     let material = Material::new(1e6, 0.3, 1000.0).unwrap();
@@ -37,19 +37,7 @@ fn manufactured_solutions_converge_at_the_rates_of_linear_tets() {
     for case in [Manufactured::Sin111, Manufactured::Cos123] {
         let sizes = [4, 8, 16];
         let e: Vec<(Real, Real)> = sizes.iter().map(|&n| errors(case, n)).collect();
-        for w in 0..2 {
-            let (h0, h1) = (1.0 / sizes[w] as Real, 1.0 / sizes[w + 1] as Real);
-            let l2 = rate(e[w].0, e[w + 1].0, h0, h1);
-            let h1_rate = rate(e[w].1, e[w + 1].1, h0, h1);
-            println!(
-                "{case:?} n = {} → {}: L2 {:.3e} → {:.3e} rate {l2:.3}, H1 {:.3e} → {:.3e} rate {h1_rate:.3}",
-                sizes[w],
-                sizes[w + 1],
-                e[w].0,
-                e[w + 1].0,
-                e[w].1,
-                e[w + 1].1
-            );
+        for (w, (l2, h1_rate)) in refinement_rates(&format!("{case:?}"), &sizes, &e).into_iter().enumerate() {
             assert!(l2 >= 1.8, "{case:?} n = {} → {}: L2 rate {l2} < 1.8", sizes[w], sizes[w + 1]);
             assert!(h1_rate >= 0.85, "{case:?} n = {} → {}: H1 rate {h1_rate} < 0.85", sizes[w], sizes[w + 1]);
         }

@@ -109,6 +109,29 @@ pub fn rate(error_coarse: Real, error_fine: Real, h_coarse: Real, h_fine: Real) 
     (error_coarse / error_fine).ln() / (h_coarse / h_fine).ln()
 }
 
+/// The observed L2 and H1 rates between consecutive levels of a refinement on the unit cube
+/// (`sizes[k]` cells per edge, `errors[k]` its relative (L2, H1) errors), each printed under
+/// `label`.
+pub fn refinement_rates(label: &str, sizes: &[usize], errors: &[(Real, Real)]) -> Vec<(Real, Real)> {
+    (0..sizes.len().saturating_sub(1))
+        .map(|w| {
+            let (h0, h1) = (1.0 / sizes[w] as Real, 1.0 / sizes[w + 1] as Real);
+            let l2 = rate(errors[w].0, errors[w + 1].0, h0, h1);
+            let h1_rate = rate(errors[w].1, errors[w + 1].1, h0, h1);
+            println!(
+                "{label} n = {} → {}: L2 {:.3e} → {:.3e} rate {l2:.3}, H1 {:.3e} → {:.3e} rate {h1_rate:.3}",
+                sizes[w],
+                sizes[w + 1],
+                errors[w].0,
+                errors[w + 1].0,
+                errors[w].1,
+                errors[w + 1].1
+            );
+            (l2, h1_rate)
+        })
+        .collect()
+}
+
 /// Scalar DOFs of nodes whose rest position satisfies `on_boundary`, with values from `value`
 /// (for nodal backends, whose rest DOFs are node positions).
 pub fn nodal_dirichlet(

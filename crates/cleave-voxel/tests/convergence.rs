@@ -4,7 +4,9 @@
 
 use cleave_core::{Discretization, Material, Point3, Real};
 use cleave_integrator::solve_static;
-use cleave_testkit::problems::{Manufactured, cantilever, field_errors, nodal_dirichlet, on_unit_cube_boundary, rate};
+use cleave_testkit::problems::{
+    Manufactured, cantilever, field_errors, nodal_dirichlet, on_unit_cube_boundary, refinement_rates,
+};
 use cleave_voxel::VoxelMesh;
 
 fn manufactured_errors(case: Manufactured, n: usize) -> (Real, Real) {
@@ -24,19 +26,7 @@ fn manufactured_solutions_converge_at_rates_two_and_one() {
     for case in [Manufactured::Sin111, Manufactured::Cos123] {
         let sizes = [4, 8, 16];
         let errors: Vec<(Real, Real)> = sizes.iter().map(|&n| manufactured_errors(case, n)).collect();
-        for w in 0..2 {
-            let (h0, h1) = (1.0 / sizes[w] as Real, 1.0 / sizes[w + 1] as Real);
-            let l2 = rate(errors[w].0, errors[w + 1].0, h0, h1);
-            let h1_rate = rate(errors[w].1, errors[w + 1].1, h0, h1);
-            println!(
-                "{case:?} n={}→{}: L2 {:.3e}→{:.3e} rate {l2:.3}, H1 {:.3e}→{:.3e} rate {h1_rate:.3}",
-                sizes[w],
-                sizes[w + 1],
-                errors[w].0,
-                errors[w + 1].0,
-                errors[w].1,
-                errors[w + 1].1
-            );
+        for (l2, h1_rate) in refinement_rates(&format!("{case:?}"), &sizes, &errors) {
             assert!(l2 >= 1.9, "{case:?}: L2 rate {l2} < 1.9");
             assert!(h1_rate >= 0.9, "{case:?}: H1 rate {h1_rate} < 0.9");
         }
