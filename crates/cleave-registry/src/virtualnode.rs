@@ -200,13 +200,8 @@ pub fn sliver_beam(material: &Material, grid: &BoxGrid) -> Result<VirtualNodeMes
 /// [`sliver_beam`] with the crack `offset · h` from the node plane.
 fn cracked_beam(material: &Material, grid: &BoxGrid, offset: Real) -> Result<VirtualNodeMesh, String> {
     let (lo, hi) = (grid.origin, grid.max_corner());
-    let mut mesh = VirtualNodeMesh::from_box(lo, hi, grid.h, *material).map_err(|e| e.to_string())?;
     // Lattice nodes lie at the box's corner planes and every h from them.
     let x = lo.x + (grid.dims[0] / 2) as Real * grid.h + offset * grid.h;
-    let (y0, y1) = (lo.y - grid.h, hi.y + grid.h);
-    let (z0, z1) = (lo.z + 0.4 * (hi.z - lo.z), hi.z + grid.h);
-    let corners = [Point3::new(x, y0, z0), Point3::new(x, y1, z0), Point3::new(x, y1, z1), Point3::new(x, y0, z1)];
-    mesh.cut_triangles(&[[corners[0], corners[1], corners[2]], [corners[0], corners[2], corners[3]]])
-        .map_err(|e| format!("cracking the sliver beam: {e}"))?;
-    Ok(mesh)
+    VirtualNodeMesh::cracked_box(lo, hi, grid.h, *material, x, lo.z + 0.4 * (hi.z - lo.z))
+        .map_err(|e| format!("cracking the sliver beam: {e}"))
 }
