@@ -202,6 +202,8 @@ fn cracked_beam(material: &Material, grid: &BoxGrid, offset: Real) -> Result<Vir
     let (lo, hi) = (grid.origin, grid.max_corner());
     // Lattice nodes lie at the box's corner planes and every h from them.
     let x = lo.x + (grid.dims[0] / 2) as Real * grid.h + offset * grid.h;
-    VirtualNodeMesh::cracked_box(lo, hi, grid.h, *material, x, lo.z + 0.4 * (hi.z - lo.z))
-        .map_err(|e| format!("cracking the sliver beam: {e}"))
+    let mut mesh = VirtualNodeMesh::from_box(lo, hi, grid.h, *material).map_err(|e| e.to_string())?;
+    let crack = cleave_testkit::problems::crack::half_plane(&lo, &hi, x, lo.z + 0.4 * (hi.z - lo.z), grid.h);
+    mesh.cut(&crack).map_err(|e| format!("cracking the sliver beam: {e}"))?;
+    Ok(mesh)
 }

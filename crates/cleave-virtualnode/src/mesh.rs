@@ -39,9 +39,6 @@ pub enum VirtualNodeError {
     /// Carving left no material.
     #[error("carving left no material (is the surface inside out or smaller than the lattice?)")]
     Empty,
-    /// A cut made while building the body failed.
-    #[error("cut: {0}")]
-    Cut(#[from] TopologyError),
     /// Internal block bookkeeping failed (a bug).
     #[error(transparent)]
     Blocks(#[from] cleave_core::BlockSetError),
@@ -458,30 +455,6 @@ impl VirtualNodeMesh {
     /// An axis-aligned box `[lo, hi]` carved out of a lattice of spacing `h`.
     pub fn from_box(lo: Point3<Real>, hi: Point3<Real>, h: Real, material: Material) -> Result<Self, VirtualNodeError> {
         Self::carve(&box_surface(lo, hi), h, material)
-    }
-
-    /// The box `lo..hi` carved at spacing `h`, then cracked by the plane x = `crack_x` from height
-    /// `from_z` up through the top, across the whole width (two triangles reaching a cell past
-    /// the box). Below the crack the material stays connected; a crack close to a lattice node
-    /// plane leaves slivers and caps next to it (the stability suite's sliver beam).
-    pub fn cracked_box(
-        lo: Point3<Real>,
-        hi: Point3<Real>,
-        h: Real,
-        material: Material,
-        crack_x: Real,
-        from_z: Real,
-    ) -> Result<Self, VirtualNodeError> {
-        let mut mesh = Self::from_box(lo, hi, h, material)?;
-        let (y0, y1, z1) = (lo.y - h, hi.y + h, hi.z + h);
-        let corners = [
-            Point3::new(crack_x, y0, from_z),
-            Point3::new(crack_x, y1, from_z),
-            Point3::new(crack_x, y1, z1),
-            Point3::new(crack_x, y0, z1),
-        ];
-        mesh.cut_triangles(&[[corners[0], corners[1], corners[2]], [corners[0], corners[2], corners[3]]])?;
-        Ok(mesh)
     }
 
     /// The material.
