@@ -1,16 +1,16 @@
 //! The virtual node backend (sifakis2007): its scene settings and its comparison variant. A
-//! closed surface (or box) is carved out of a BCC lattice by the same algorithm that cuts; the
-//! backend is nodal, so pins hold every node copy whose rest position lies in a pin region, and
-//! are resolved again after every cut. The comparison's Dirichlet data goes to every node of
-//! every duplicate whose region has a face on the Dirichlet boundary ([`carved_dirichlet`]),
-//! virtual nodes outside the box included.
+//! closed surface (or box) is carved out of a BCC lattice by the same algorithm that cuts. Scene
+//! pins (resolved again after every cut) and the comparison's Dirichlet data (`nodal_dirichlet`)
+//! both hold what `Discretization::dirichlet_nodes` names: every node of every duplicate whose
+//! region has a face on the Dirichlet boundary, virtual nodes outside the box included.
 
 use crate::backend::{Backend, BackendError, BuiltSolid, Shape, SolidRequest, cell_size_for, one_size, parse_settings};
-use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real};
+use cleave_core::{CutSurface, Cuttable, Material, Point3, Real};
 use cleave_testkit::compare::{
     BoxGrid, BuildError, BuiltProblem, CompareBackend, CutError, CutProblem, DirichletSpec, ExtremeCase, NotApplicable,
     corner_pushed_in, stretch_start,
 };
+use cleave_testkit::problems::nodal_dirichlet;
 use cleave_virtualnode::{VirtualNodeMesh, box_surface};
 
 /// Registration of `cleave-virtualnode`: one variant, corotated linear tetrahedra on a BCC lattice.
@@ -80,7 +80,7 @@ impl CompareBackend for VirtualNodeBackend {
         let mesh = VirtualNodeMesh::from_box(grid.origin, grid.max_corner(), grid.h, *material)
             .map_err(|e| BuildError(e.to_string()))?;
         let elements = mesh.num_duplicates();
-        let prescribed = carved_dirichlet(&mesh, dirichlet);
+        let prescribed = nodal_dirichlet(&mesh, dirichlet.region, dirichlet.value);
         Ok(BuiltProblem {
             discretization: Box::new(mesh),
             prescribed,
@@ -95,7 +95,7 @@ impl CompareBackend for VirtualNodeBackend {
     }
 
     /// The carved box cut by `surface` with `Cuttable::cut` (what scenes call), the Dirichlet data
-    /// resolved on the cut mesh by [`carved_dirichlet`].
+    /// resolved on the cut mesh by `Discretization::dirichlet_nodes`, through `nodal_dirichlet`.
     fn build_cut_box(
         &self,
         variant: &str,
@@ -109,7 +109,7 @@ impl CompareBackend for VirtualNodeBackend {
             .map_err(|e| CutError::Build(e.to_string()))?;
         let change = mesh.cut(surface).map_err(|e| CutError::Build(e.to_string()))?;
         let elements = mesh.num_duplicates();
-        let prescribed = carved_dirichlet(&mesh, dirichlet);
+        let prescribed = nodal_dirichlet(&mesh, dirichlet.region, dirichlet.value);
         let built = BuiltProblem {
             discretization: Box::new(mesh),
             prescribed,
@@ -136,7 +136,7 @@ impl CompareBackend for VirtualNodeBackend {
         crate::only_variant("virtualnode", variant, "linear-tet")?;
         let mesh = sliver_beam(material, grid).map_err(BuildError)?;
         let elements = mesh.num_duplicates();
-        let prescribed = carved_dirichlet(&mesh, dirichlet);
+        let prescribed = nodal_dirichlet(&mesh, dirichlet.region, dirichlet.value);
         Ok(Some(BuiltProblem {
             discretization: Box::new(mesh),
             prescribed,
@@ -160,22 +160,6 @@ impl CompareBackend for VirtualNodeBackend {
             ExtremeCase::Stretch100 => Ok(stretch_start(built, grid)),
         }
     }
-}
-
-/// Dirichlet data of a carved box, prescribed strongly at the nodes
-/// `Discretization::dirichlet_nodes` holds (every node of a duplicate touching the Dirichlet
-/// part, virtual nodes outside the box included: the scene's pins resolve through the same
-/// function), each given `dirichlet.value` at its rest position (its lattice node's, outside the
-/// box for a virtual node; the manufactured solutions extend smoothly there, and a clamp is zero).
-pub fn carved_dirichlet(mesh: &VirtualNodeMesh, dirichlet: &DirichletSpec) -> Vec<(usize, Real)> {
-    let rest = mesh.rest_dofs();
-    let mut prescribed = Vec::new();
-    for node in mesh.dirichlet_nodes(dirichlet.region) {
-        let k = 3 * node as usize;
-        let u = (dirichlet.value)(&Point3::new(rest[k], rest[k + 1], rest[k + 2]));
-        prescribed.extend((0..3).map(|c| (k + c, u[c])));
-    }
-    prescribed
 }
 
 /// Distance of the sliver beam's crack plane from the lattice node plane it is next to, in units

@@ -132,25 +132,23 @@ pub fn refinement_rates(label: &str, sizes: &[usize], errors: &[(Real, Real)]) -
         .collect()
 }
 
-/// Scalar DOFs of nodes whose rest position satisfies `on_boundary`, with values from `value`
-/// (for nodal backends, whose rest DOFs are node positions).
+/// Strong Dirichlet data: the scalar DOFs of the nodes `Discretization::dirichlet_nodes` holds
+/// for `on_boundary` (for nodal bases the nodes whose rest position lies on it; for carved ones
+/// also the nodes of elements touching it), each given `value` at its rest position. Scene pins
+/// resolve through the same `dirichlet_nodes`.
 pub fn nodal_dirichlet(
     d: &dyn Discretization,
     on_boundary: impl Fn(&Point3<Real>) -> bool,
     value: impl Fn(&Point3<Real>) -> Vector3<Real>,
 ) -> Vec<(usize, Real)> {
-    d.rest_dofs()
-        .chunks_exact(3)
-        .enumerate()
-        .filter_map(|(n, p)| {
-            let p = Point3::new(p[0], p[1], p[2]);
-            on_boundary(&p).then(|| {
-                let u = value(&p);
-                (0..3).map(move |c| (3 * n + c, u[c]))
-            })
-        })
-        .flatten()
-        .collect()
+    let rest = d.rest_dofs();
+    let mut prescribed = Vec::new();
+    for node in d.dirichlet_nodes(&on_boundary) {
+        let k = 3 * node as usize;
+        let u = value(&Point3::new(rest[k], rest[k + 1], rest[k + 2]));
+        prescribed.extend((0..3).map(|c| (k + c, u[c])));
+    }
+    prescribed
 }
 
 /// True on the boundary of the unit cube (to rounding).
