@@ -55,7 +55,8 @@ pub enum Preconditioner {
     /// surface point) plus a coarse space of the pieces' rigid motions with the contacts between
     /// them (docs/math/corotated-integrator.md, "Piecewise preconditioner"). Its cost grows with
     /// the pieces' sizes and the contacts, not with the fill that contacts knit between pieces
-    /// in one factorization of everything.
+    /// in one factorization of everything. It assembles the elastic part itself and multiplies
+    /// with it (contacts matrix-free), whatever `Solver::ConjugateGradient::assembled` says.
     Pieces,
 }
 
@@ -373,9 +374,13 @@ impl Integrator {
             }
         }
         self.divergence_limit = self.settings.divergence_factor * (hi - lo).norm().max(1e-3);
+        // The piecewise preconditioner assembles the elastic part itself and multiplies with it
+        // (contacts matrix-free): an assembled system with contact couplings would only be filled.
         let needs_assembly = match self.settings.solver {
             Solver::Cholesky => true,
-            Solver::ConjugateGradient { assembled, .. } => assembled && discretization.wants_assembly(),
+            Solver::ConjugateGradient { assembled, .. } => {
+                assembled && discretization.wants_assembly() && self.settings.preconditioner != Preconditioner::Pieces
+            }
         };
         self.assembly_pending = needs_assembly && defer_assembly;
         self.system = if needs_assembly && !defer_assembly {

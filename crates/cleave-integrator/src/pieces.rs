@@ -65,8 +65,11 @@ pub(crate) struct PiecePreconditioner {
     coarse_cholesky: Option<SparseCholesky>,
     /// Whether the last coarse factorization succeeded (else the correction is skipped).
     coarse_ready: bool,
-    /// Scratch: the step's pairs, the restricted vector, per-piece 6×6 blocks.
+    /// Scratch, kept across steps: the step's pairs, one contact's pieces and sides, the
+    /// restricted vector, per-piece coarse blocks.
     pairs: Vec<(u32, u32)>,
+    contact_pieces: Vec<u32>,
+    sides: Vec<(u32, Phi)>,
     restricted: Vec<Real>,
     diagonal: Vec<CoarseBlock>,
     /// Times the coarse pattern grew for new piece pairs in contact.
@@ -178,6 +181,8 @@ impl PiecePreconditioner {
             coarse_cholesky: None,
             coarse_ready: false,
             pairs: Vec::new(),
+            contact_pieces: Vec::with_capacity(16),
+            sides: Vec::with_capacity(4),
             restricted: vec![0.0; MODES * pieces],
             diagonal: vec![CoarseBlock::zeros(); pieces],
             growths: 0,
@@ -265,7 +270,7 @@ impl PiecePreconditioner {
     /// symbolic factorization; pairs seen before in this epoch are kept).
     fn grow_coarse_pattern(&mut self, points: &Embedding, contacts: &[Contact]) -> Result<(), StepErrorKind> {
         self.pairs.clear();
-        let mut pieces = Vec::with_capacity(16);
+        let mut pieces = std::mem::take(&mut self.contact_pieces);
         for c in contacts {
             pieces.clear();
             contact::for_each_entry(points, c, |n, _| {
@@ -282,6 +287,7 @@ impl PiecePreconditioner {
                 }
             }
         }
+        self.contact_pieces = pieces;
         self.pairs.sort_unstable();
         self.pairs.dedup();
         let known = |pair: &(u32, u32)| self.coupled_pairs.binary_search(pair).is_ok();
@@ -338,7 +344,7 @@ impl PiecePreconditioner {
 
     /// `Σ_contacts G_pᵀ P G_q` over the pieces `p, q` of each contact row, `G_p = Σ_{n ∈ p} w_n Φ_n`.
     fn add_coarse_contacts(&mut self, points: &Embedding, contacts: &[Contact], x: &[Real]) {
-        let mut sides: Vec<(u32, Phi)> = Vec::with_capacity(4);
+        let mut sides = std::mem::take(&mut self.sides);
         for c in contacts {
             sides.clear();
             contact::for_each_entry(points, c, |n, w| {
@@ -357,6 +363,7 @@ impl PiecePreconditioner {
                 }
             }
         }
+        self.sides = sides;
     }
 
     /// The step matrix and the preconditioner of the prepared step, borrowed apart for CG.
