@@ -10,14 +10,15 @@
 
 use crate::cg::CgWorkspace;
 use crate::constraints::Constraints;
-use crate::contact::{self, ContactSet, ContactStats};
 use crate::error::{StepError, StepErrorKind};
 use crate::low_rank::{self, LowRankUpdate};
 use crate::momentum::FreePieces;
+use crate::penalty::{self, MatrixScratch};
 use crate::pieces::PiecePreconditioner;
 use crate::system::AssembledSystem;
 use crate::two_level::TwoLevel;
-use cleave_core::{Discretization, Embedding, Matrix3, Point3, Real, TopologyChange, Vector3};
+use cleave_contact::{ContactSet, ContactStats};
+use cleave_core::{Discretization, Matrix3, Point3, Real, TopologyChange, Vector3};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -192,6 +193,14 @@ impl StepReport {
 /// How many times a step is solved again for pairs its solution drives into each other.
 const DRIVEN_CONTACT_PASSES: usize = 2;
 
+/// The factors of a step's matrix `(1 + hα) M + (hβ + h²) K_R` and the time step.
+#[derive(Clone, Copy, Debug)]
+struct StepScales {
+    mass: Real,
+    stiffness: Real,
+    h: Real,
+}
+
 /// Per-step scratch, sized once per epoch.
 #[derive(Debug, Default)]
 struct Workspace {
@@ -205,60 +214,9 @@ struct Workspace {
     trial_inverted: Option<usize>,
     preconditioner: Vec<Matrix3<Real>>,
     contacts: ContactSet,
+    matrix_scratch: MatrixScratch,
     cg: CgWorkspace,
     low_rank: LowRankUpdate,
-}
-
-/// The contact structures of a topology (each surface point's ring, the surface's pieces and
-/// edges), which depend on the contact points, the surface and the rest positions only: built
-/// off the step's thread by a caller that knows the next topology ahead, then handed to
-/// [`Integrator::apply_topology_change_prepared`].
-pub struct PreparedContact {
-    set: ContactSet,
-    /// What it was built from: the number of contact points and surface triangles and a hash
-    /// of everything it reads (rest positions, contact points' rows, triangles, cut flags).
-    built_from: (usize, usize, u64),
-}
-
-impl PreparedContact {
-    /// Builds them for `constraints` (its contact points and surface contact) at rest
-    /// positions `rest_dofs`.
-    pub fn new(constraints: &Constraints, rest_dofs: &[Real]) -> Self {
-        Self { set: ContactSet::new(constraints, rest_dofs), built_from: Self::key(constraints, rest_dofs) }
-    }
-
-    fn key(constraints: &Constraints, rest_dofs: &[Real]) -> (usize, usize, u64) {
-        use std::hash::{Hash, Hasher};
-        let mut hasher = std::collections::hash_map::DefaultHasher::new();
-        rest_dofs.iter().for_each(|x| x.to_bits().hash(&mut hasher));
-        if let Some(points) = &constraints.contact_points {
-            for i in 0..points.len() {
-                let (nodes, weights) = points.row(i);
-                nodes.hash(&mut hasher);
-                weights.iter().for_each(|w| w.to_bits().hash(&mut hasher));
-            }
-        }
-        if let Some(surface) = &constraints.surface_contact {
-            surface.triangles.hash(&mut hasher);
-            surface.on_cut.hash(&mut hasher);
-            surface.piece.hash(&mut hasher);
-        }
-        (
-            constraints.contact_points.as_ref().map_or(0, Embedding::len),
-            constraints.surface_contact.as_ref().map_or(0, |s| s.triangles.len()),
-            hasher.finish(),
-        )
-    }
-
-    fn matches(&self, constraints: &Constraints, rest_dofs: &[Real]) -> bool {
-        self.built_from == Self::key(constraints, rest_dofs)
-    }
-}
-
-impl std::fmt::Debug for PreparedContact {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("PreparedContact").field("built_from", &self.built_from).finish()
-    }
 }
 
 /// Owns the state `{x, v, epoch}` and advances it.
@@ -337,7 +295,7 @@ impl Integrator {
         discretization: &dyn Discretization,
         defer_assembly: bool,
         // Contact structures built beforehand for these constraints (checked by the caller).
-        prepared: Option<PreparedContact>,
+        prepared: Option<ContactSet>,
     ) -> Result<(), StepErrorKind> {
         let n = self.x.len();
         // Warm starts survive a topology change when the caller remapped them frame by frame.
@@ -418,8 +376,8 @@ impl Integrator {
         self.work.preconditioner = vec![Matrix3::zeros(); discretization.num_nodes()];
         let previous = std::mem::take(&mut self.work.contacts);
         self.work.contacts = match prepared {
-            Some(prepared) => prepared.set,
-            None => ContactSet::new(&self.constraints, discretization.rest_dofs()),
+            Some(prepared) => prepared,
+            None => ContactSet::new(&self.constraints.colliders(), discretization.rest_dofs()),
         };
         self.work.contacts.reuse_trees(previous);
         // The penetrating pairs of the new state are found only if its energy is asked for
@@ -486,21 +444,21 @@ impl Integrator {
         change: &TopologyChange,
         constraints: Constraints,
     ) -> Result<(), StepError> {
-        self.apply_topology_change_prepared(discretization, change, constraints, None).map(|_| ())
+        self.apply_topology_change_with(discretization, change, constraints, None).map(|_| ())
     }
 
     /// [`apply_topology_change`](Self::apply_topology_change) with the contact structures of
-    /// the new topology built beforehand ([`PreparedContact`], e.g. off the step's thread by a
+    /// the new topology built beforehand ([`ContactSet::new`], e.g. off the step's thread by a
     /// caller that knew the change ahead). They are used if they were built from the same
     /// contact points, surface and rest positions as `constraints` and `discretization` hold
     /// (checked by their sizes and a hash of all they were built from), else built again here.
     /// Returns whether they were used.
-    pub fn apply_topology_change_prepared(
+    pub fn apply_topology_change_with(
         &mut self,
         discretization: &dyn Discretization,
         change: &TopologyChange,
         constraints: Constraints,
-        prepared: Option<PreparedContact>,
+        prepared: Option<ContactSet>,
     ) -> Result<bool, StepError> {
         let fail = |kind| StepError { step: self.step, kind };
         let old_nodes = self.x.len() / 3;
@@ -524,7 +482,7 @@ impl Integrator {
         // With surface contact the first step's contacts grow the pattern anyway: its system is
         // built then, with them, and one symbolic factorization per cut is saved.
         let defer = self.constraints.surface_contact.is_some();
-        let prepared = prepared.filter(|p| p.matches(&self.constraints, discretization.rest_dofs()));
+        let prepared = prepared.filter(|p| p.built_for(&self.constraints.colliders(), discretization.rest_dofs()));
         let used = prepared.is_some();
         self.rebuild(discretization, defer, prepared).map(|()| used).map_err(|kind| StepError { step: self.step, kind })
     }
@@ -619,11 +577,11 @@ impl Integrator {
         let mut active = 0;
         if self.contacts_stale {
             // Energy is a function of the state: the pairs penetrating now.
-            self.work.contacts.detect(&self.constraints, &self.x, &self.v, 0.0, &Vector3::zeros());
+            self.work.contacts.detect(&self.constraints.colliders(), &self.x, &self.v, 0.0, &Vector3::zeros());
             self.contacts_stale = false;
         }
         if let Some(points) = self.constraints.contact_points.as_ref().filter(|_| self.constraints.has_contact()) {
-            (energy, active) = contact::energy(points, &self.work.contacts.contacts, &self.x);
+            (energy, active) = cleave_contact::energy(points, self.work.contacts.contacts(), &self.x);
         }
         if let Some(pins) = &self.constraints.penalty_pins {
             for (i, target) in pins.targets.iter().enumerate() {
@@ -649,12 +607,54 @@ impl Integrator {
         }
         let h = self.settings.time_step;
         let (alpha, beta) = (self.settings.rayleigh_alpha, self.settings.rayleigh_beta);
-        let mass_scale = 1.0 + h * alpha;
-        let stiffness_scale = h * beta + h * h;
+        let scales = StepScales { mass: 1.0 + h * alpha, stiffness: h * beta + h * h, h };
         let mut seconds = PhaseSeconds::default();
-
-        // Right-hand side: M v + h (f_int(x) + f_ext + f_c(x)).
         let clock = Instant::now();
+        self.detect_and_load(discretization, &mut seconds);
+        // Assemble and solve; then, once or twice, the pairs that were near but not active and
+        // that the solution drives into each other (a piece deflected into another within the
+        // step, which the start-of-step velocities did not predict) join the step and it is
+        // solved again with the same right-hand side (their gap is not negative, so they add
+        // no force, only the implicit term that stops their approach: docs/math/contact.md §3).
+        let mut assembly_clock = clock;
+        let mut passes = 0;
+        // Iterations summed over the passes (a Cholesky pass counts one).
+        let mut iterations = 0;
+        let mut rotations_refreshed = false;
+        let mut pieces_prepared = false;
+        self.work.trial_inverted = None;
+        let mut built_with_contacts = self.build_pending_system(discretization, &mut seconds)?;
+        let residual = loop {
+            // A system just built with this step's contacts has their couplings already.
+            let skip_growth = std::mem::take(&mut built_with_contacts);
+            self.assemble(discretization, scales, skip_growth, &mut seconds)?;
+            seconds.assembly += assembly_clock.elapsed().as_secs_f64();
+
+            let clock = Instant::now();
+            let solved = self.solve(discretization, scales, &mut pieces_prepared)?;
+            iterations += solved.0;
+            // Pairs the solution drives together join the step (one or two more passes); the
+            // search for them counts as solve time.
+            let finished = self.join_driven_pairs(h, &mut passes, &mut iterations);
+            seconds.solve += clock.elapsed().as_secs_f64();
+            if finished {
+                if !rotations_refreshed && self.refresh_rotations(discretization, h, &mut seconds) {
+                    rotations_refreshed = true;
+                    pieces_prepared = false;
+                    assembly_clock = Instant::now();
+                    continue;
+                }
+                break solved.1;
+            }
+            assembly_clock = Instant::now();
+        };
+        self.finish_step(discretization, h, (iterations, residual), seconds)
+    }
+
+    /// The step's right-hand side `M v + h (f_int(x) + f_ext + f_c(x))`, pinned rows zeroed,
+    /// with this step's contacts found at `x` first (their forces are in it).
+    fn detect_and_load(&mut self, discretization: &dyn Discretization, seconds: &mut PhaseSeconds) {
+        let h = self.settings.time_step;
         let mass = discretization.mass();
         let Workspace { rhs, force, .. } = &mut self.work;
         force.copy_from_slice(&self.external_force);
@@ -669,7 +669,7 @@ impl Integrator {
         mass.apply(&self.v, rhs);
         let contact_clock = Instant::now();
         if self.constraints.has_contact() {
-            self.work.contacts.detect(&self.constraints, &self.x, &self.v, h, &self.settings.gravity);
+            self.work.contacts.detect(&self.constraints.colliders(), &self.x, &self.v, h, &self.settings.gravity);
         }
         self.contacts_stale = false;
         seconds.contact = contact_clock.elapsed().as_secs_f64();
@@ -683,250 +683,268 @@ impl Integrator {
                 *r = 0.0;
             }
         }
-        // Assemble and solve; then, once or twice, the pairs that were near but not active and
-        // that the solution drives into each other (a piece deflected into another within the
-        // step, which the start-of-step velocities did not predict) join the step and it is
-        // solved again with the same right-hand side (their gap is not negative, so they add
-        // no force, only the implicit term that stops their approach: docs/math/contact.md §3).
-        let mut assembly_clock = clock;
-        let mut passes = 0;
-        // Iterations summed over the passes (a Cholesky pass counts one).
-        let mut iterations = 0;
-        let mut built_with_contacts = false;
-        let mut rotations_refreshed = false;
-        let mut pieces_prepared = false;
-        self.work.trial_inverted = None;
-        if self.assembly_pending {
-            let mut pattern = AssembledSystem::base_pattern(discretization, &self.constraints);
-            // Only merging this step's contact couplings counts as contact's pattern work: the
-            // epoch's own pattern and symbolic factorization are what the topology change needs
-            // with or without contact (built here, once, instead of at the change and again
-            // for the contacts).
-            let clock = Instant::now();
-            if let Some(points) =
-                self.constraints.contact_points.as_ref().filter(|_| self.constraints.surface_contact.is_some())
-            {
-                let missing = contact::missing_couplings(points, &self.work.contacts, &pattern);
-                if !missing.is_empty() {
-                    pattern = pattern.with_groups(missing.iter().map(Vec::as_slice));
-                }
-            }
-            seconds.pattern += clock.elapsed().as_secs_f64();
-            let cholesky = self.settings.solver == Solver::Cholesky;
-            self.system = Some(AssembledSystem::on_pattern(pattern, discretization, &self.constraints, cholesky)?);
-            self.assembly_pending = false;
-            built_with_contacts = true;
+    }
+
+    /// The epoch's assembled system when a topology change left it to this step: its pattern
+    /// with this step's contact couplings merged in. Returns whether it was built.
+    fn build_pending_system(
+        &mut self,
+        discretization: &dyn Discretization,
+        seconds: &mut PhaseSeconds,
+    ) -> Result<bool, StepErrorKind> {
+        if !self.assembly_pending {
+            return Ok(false);
         }
-        let residual = loop {
-            let mut grew = false;
-            // A system just built with this step's contacts has their couplings already.
-            if !std::mem::take(&mut built_with_contacts)
-                && let Some(system) = &self.system
-                && self.constraints.surface_contact.is_some()
-                && let Some(points) = &self.constraints.contact_points
-            {
-                // A point and a surface triangle that were never in contact in this epoch couple
-                // nodes the pattern lacks: grow the pattern (a new symbolic factorization), keeping
-                // every coupling seen so far, so contacts that persist cost nothing more.
-                let missing = contact::missing_couplings(points, &self.work.contacts, &system.pattern);
-                if !missing.is_empty() {
-                    let clock = Instant::now();
-                    self.system = Some(system.grown(&missing, discretization, &self.constraints)?);
-                    self.pattern_growths += 1;
-                    seconds.pattern += clock.elapsed().as_secs_f64();
-                    grew = true;
-                }
+        let mut pattern = AssembledSystem::base_pattern(discretization, &self.constraints);
+        // Only merging this step's contact couplings counts as contact's pattern work: the
+        // epoch's own pattern and symbolic factorization are what the topology change needs
+        // with or without contact (built here, once, instead of at the change and again
+        // for the contacts).
+        let clock = Instant::now();
+        if let Some(points) =
+            self.constraints.contact_points.as_ref().filter(|_| self.constraints.surface_contact.is_some())
+        {
+            let missing = penalty::missing_couplings(points, &self.work.contacts, &pattern);
+            if !missing.is_empty() {
+                pattern = pattern.with_groups(missing.iter().map(Vec::as_slice));
             }
-            if let Some(system) = &mut self.system {
+        }
+        seconds.pattern += clock.elapsed().as_secs_f64();
+        let cholesky = self.settings.solver == Solver::Cholesky;
+        self.system = Some(AssembledSystem::on_pattern(pattern, discretization, &self.constraints, cholesky)?);
+        self.assembly_pending = false;
+        Ok(true)
+    }
+
+    /// Fills the assembled system (if the solver uses one) with the step matrix and the
+    /// contacts' blocks, first growing its pattern for contact couplings it lacks (unless it
+    /// was just built with them).
+    fn assemble(
+        &mut self,
+        discretization: &dyn Discretization,
+        scales: StepScales,
+        skip_growth: bool,
+        seconds: &mut PhaseSeconds,
+    ) -> Result<(), StepErrorKind> {
+        let StepScales { mass: mass_scale, stiffness: stiffness_scale, h } = scales;
+        let mut grew = false;
+        if !skip_growth
+            && let Some(system) = &self.system
+            && self.constraints.surface_contact.is_some()
+            && let Some(points) = &self.constraints.contact_points
+        {
+            // A point and a surface triangle that were never in contact in this epoch couple
+            // nodes the pattern lacks: grow the pattern (a new symbolic factorization), keeping
+            // every coupling seen so far, so contacts that persist cost nothing more.
+            let missing = penalty::missing_couplings(points, &self.work.contacts, &system.pattern);
+            if !missing.is_empty() {
                 let clock = Instant::now();
-                let with_symbolic = system.symbolic_pending();
-                let (constraints, contacts, rotations) = (&self.constraints, &self.work.contacts, &self.rotations);
-                let (fill_seconds, forces_seconds) = system.fill_beside_symbolic(|system, values| {
-                    let clock = Instant::now();
-                    system.fill_values(values, discretization, rotations, mass_scale, stiffness_scale);
-                    let forces_clock = Instant::now();
-                    Self::add_penalty_matrix(constraints, contacts, h, system, values);
-                    let forces_seconds = forces_clock.elapsed().as_secs_f64();
-                    system.apply_pins_to(values);
-                    (clock.elapsed().as_secs_f64(), forces_seconds)
-                })?;
-                seconds.contact_forces += forces_seconds;
-                if !with_symbolic {
-                    self.last_fill_seconds = fill_seconds;
-                } else if grew {
-                    // The growth's symbolic factorization ran beside the fill: it cost what the
-                    // two took beyond a fill alone.
-                    seconds.pattern += (clock.elapsed().as_secs_f64() - self.last_fill_seconds).max(0.0);
-                }
+                self.system = Some(system.grown(&missing, discretization, &self.constraints)?);
+                self.pattern_growths += 1;
+                seconds.pattern += clock.elapsed().as_secs_f64();
+                grew = true;
             }
-            seconds.assembly += assembly_clock.elapsed().as_secs_f64();
-
-            // Solve for v⁺.
+        }
+        if let Some(system) = &mut self.system {
             let clock = Instant::now();
-            let solved = match self.settings.solver {
-                Solver::Cholesky => {
-                    let system = self.system.as_mut().expect("Cholesky builds the system");
-                    system.factorize()?;
-                    self.v.copy_from_slice(&self.work.rhs);
-                    system.solve_in_place(&mut self.v);
-                    (1, 0.0)
-                }
-                Solver::ConjugateGradient { tolerance, max_iterations, .. } => {
-                    // The piecewise factors are those of the step's first pass (and of its second
-                    // rotations): pairs that join in a later pass are in CG's operator, and any
-                    // positive definite preconditioner keeps CG valid.
-                    if let Some(pieces) = self.pieces.as_mut().filter(|_| !pieces_prepared) {
-                        pieces_prepared = true;
-                        let contacts = &self.work.contacts.contacts;
-                        let (constraints, rotations, x) = (&self.constraints, &self.rotations, &self.x);
-                        pieces.prepare(
-                            discretization,
-                            constraints,
-                            rotations,
-                            x,
-                            contacts,
-                            mass_scale,
-                            stiffness_scale,
-                            h,
-                        )?;
-                    } else if self.pieces.is_none() {
-                        self.build_preconditioner(discretization, mass_scale, stiffness_scale, h);
-                    }
-                    if let (Some(two_level), Some(points)) =
-                        (self.two_level.as_mut(), self.constraints.contact_points.as_ref())
-                    {
-                        two_level.take_contacts(points, &self.work.contacts.contacts)?;
-                    }
-                    for (v, &p) in self.v.iter_mut().zip(&self.pinned) {
-                        if p {
-                            *v = 0.0;
-                        }
-                    }
-                    let pinned = &self.pinned;
-                    let rotations = &self.rotations;
-                    let contact_points = self.constraints.contact_points.as_ref();
-                    let contacts = &self.work.contacts.contacts;
-                    let penalty_pins = self.constraints.penalty_pins.as_ref();
-                    let system = &self.system;
-                    let preconditioner = &self.work.preconditioner;
-                    let mut two_level = self.two_level.as_mut();
-                    let (pieces_operator, mut pieces_correction) = match self.pieces.as_mut() {
-                        Some(pieces) => {
-                            let (operator, correction) = pieces.split();
-                            (Some(operator), Some(correction))
-                        }
-                        None => (None, None),
-                    };
-                    let x = &self.x;
-                    // One step's external impulse `h ‖f_ext‖` floors the residual scale (see cg.rs).
-                    let load_scale = h * self.external_force.iter().map(|f| f * f).sum::<Real>().sqrt();
-                    let outcome = self.work.cg.solve(
-                        |p, out| match (&pieces_operator, system) {
-                            (Some(operator), _) => operator.multiply(contact_points, contacts, pinned, p, out),
-                            (None, Some(s)) => {
-                                s.pattern.mul_vec(&s.values, p, out);
-                            }
-                            (None, None) => {
-                                mass.apply(p, out);
-                                if mass_scale != 1.0 {
-                                    out.iter_mut().for_each(|o| *o *= mass_scale);
-                                }
-                                discretization.add_stiffness_action(rotations, p, stiffness_scale, out);
-                                if let Some(points) = contact_points {
-                                    contact::add_action(points, contacts, p, out);
-                                }
-                                add_pin_action(penalty_pins, h, p, out);
-                                for (o, &pin) in out.iter_mut().zip(pinned) {
-                                    if pin {
-                                        *o = 0.0;
-                                    }
-                                }
-                            }
-                        },
-                        |r, z| {
-                            if let Some(correction) = pieces_correction.as_mut() {
-                                correction.apply(x, r, z);
-                                return;
-                            }
-                            z.par_chunks_mut(3).zip(r.par_chunks(3)).zip(preconditioner).for_each(|((z, r), m)| {
-                                let y = m * Vector3::new(r[0], r[1], r[2]);
-                                z.copy_from_slice(y.as_slice());
-                            });
-                            if let Some(two_level) = two_level.as_deref_mut() {
-                                two_level.add_correction(r, z);
-                            }
-                        },
-                        &self.work.rhs,
-                        load_scale,
-                        &mut self.v,
-                        tolerance,
-                        max_iterations,
-                    );
-                    if !outcome.converged {
-                        return Err(StepErrorKind::CgNotConverged {
-                            iterations: outcome.iterations,
-                            residual: outcome.relative_residual,
-                            tolerance,
-                        });
-                    }
-                    (outcome.iterations, outcome.relative_residual)
-                }
-            };
-            iterations += solved.0;
-            // Pairs the solution drives together join the step (one or two more passes); the
-            // search for them counts as solve time.
-            let finished = 'again: {
-                if passes == DRIVEN_CONTACT_PASSES {
-                    break 'again true;
-                }
-                let Some(points) = self.constraints.contact_points.as_ref() else { break 'again true };
-                let mut added = self.work.contacts.activate_driven(points, &self.v, h);
-                if added == 0 {
-                    break 'again true;
-                }
-                passes += 1;
-                // With a factorization at hand, the pairs that joined are a low-rank update of
-                // it (low_rank.rs); their couplings join the pattern when the next step's
-                // contacts need them. Too many columns, or a capacitance that is not positive
-                // definite: the pattern grows and the matrix is factorized again with them.
-                if self.settings.solver != Solver::Cholesky || passes != 1 {
-                    break 'again false;
-                }
-                let system = self.system.as_mut().expect("Cholesky builds the system");
-                let update = &mut self.work.low_rank;
-                update.begin(&self.v);
-                let contacts = &mut self.work.contacts;
-                loop {
-                    update.push_contacts(points, &contacts.contacts[contacts.contacts.len() - added..], &self.pinned);
-                    if update.rank() > low_rank::MAX_COLUMNS
-                        || !update.solve(|rhs, count| system.solve_columns_in_place(rhs, count), &mut self.v)
-                    {
-                        break 'again false;
-                    }
-                    iterations += 1;
-                    if passes == DRIVEN_CONTACT_PASSES {
-                        break 'again true;
-                    }
-                    added = contacts.activate_driven(points, &self.v, h);
-                    if added == 0 {
-                        break 'again true;
-                    }
-                    passes += 1;
-                }
-            };
-            seconds.solve += clock.elapsed().as_secs_f64();
-            if finished {
-                if !rotations_refreshed && self.refresh_rotations(discretization, h, &mut seconds) {
-                    rotations_refreshed = true;
-                    pieces_prepared = false;
-                    assembly_clock = Instant::now();
-                    continue;
-                }
-                break solved.1;
+            let with_symbolic = system.symbolic_pending();
+            let (constraints, rotations) = (&self.constraints, &self.rotations);
+            let contacts = (&self.work.contacts, &self.work.matrix_scratch);
+            let (fill_seconds, forces_seconds) = system.fill_beside_symbolic(|system, values| {
+                let clock = Instant::now();
+                system.fill_values(values, discretization, rotations, mass_scale, stiffness_scale);
+                let forces_clock = Instant::now();
+                Self::add_penalty_matrix(constraints, contacts, h, system, values);
+                let forces_seconds = forces_clock.elapsed().as_secs_f64();
+                system.apply_pins_to(values);
+                (clock.elapsed().as_secs_f64(), forces_seconds)
+            })?;
+            seconds.contact_forces += forces_seconds;
+            if !with_symbolic {
+                self.last_fill_seconds = fill_seconds;
+            } else if grew {
+                // The growth's symbolic factorization ran beside the fill: it cost what the
+                // two took beyond a fill alone.
+                seconds.pattern += (clock.elapsed().as_secs_f64() - self.last_fill_seconds).max(0.0);
             }
-            assembly_clock = Instant::now();
-        };
+        }
+        Ok(())
+    }
 
+    /// Solves the assembled or matrix-free system for `v⁺`: iterations (a Cholesky solve counts
+    /// one) and the relative residual.
+    fn solve(
+        &mut self,
+        discretization: &dyn Discretization,
+        scales: StepScales,
+        pieces_prepared: &mut bool,
+    ) -> Result<(usize, Real), StepErrorKind> {
+        let StepScales { mass: mass_scale, stiffness: stiffness_scale, h } = scales;
+        let mass = discretization.mass();
+        Ok(match self.settings.solver {
+            Solver::Cholesky => {
+                let system = self.system.as_mut().expect("Cholesky builds the system");
+                system.factorize()?;
+                self.v.copy_from_slice(&self.work.rhs);
+                system.solve_in_place(&mut self.v);
+                (1, 0.0)
+            }
+            Solver::ConjugateGradient { tolerance, max_iterations, .. } => {
+                // The piecewise factors are those of the step's first pass (and of its second
+                // rotations): pairs that join in a later pass are in CG's operator, and any
+                // positive definite preconditioner keeps CG valid.
+                if let Some(pieces) = self.pieces.as_mut().filter(|_| !*pieces_prepared) {
+                    *pieces_prepared = true;
+                    let contacts = self.work.contacts.contacts();
+                    let (constraints, rotations, x) = (&self.constraints, &self.rotations, &self.x);
+                    pieces.prepare(
+                        discretization,
+                        constraints,
+                        rotations,
+                        x,
+                        contacts,
+                        mass_scale,
+                        stiffness_scale,
+                        h,
+                    )?;
+                } else if self.pieces.is_none() {
+                    self.build_preconditioner(discretization, mass_scale, stiffness_scale, h);
+                }
+                if let (Some(two_level), Some(points)) =
+                    (self.two_level.as_mut(), self.constraints.contact_points.as_ref())
+                {
+                    two_level.take_contacts(points, self.work.contacts.contacts())?;
+                }
+                for (v, &p) in self.v.iter_mut().zip(&self.pinned) {
+                    if p {
+                        *v = 0.0;
+                    }
+                }
+                let pinned = &self.pinned;
+                let rotations = &self.rotations;
+                let contact_points = self.constraints.contact_points.as_ref();
+                let contacts = self.work.contacts.contacts();
+                let penalty_pins = self.constraints.penalty_pins.as_ref();
+                let system = &self.system;
+                let preconditioner = &self.work.preconditioner;
+                let mut two_level = self.two_level.as_mut();
+                let (pieces_operator, mut pieces_correction) = match self.pieces.as_mut() {
+                    Some(pieces) => {
+                        let (operator, correction) = pieces.split();
+                        (Some(operator), Some(correction))
+                    }
+                    None => (None, None),
+                };
+                let x = &self.x;
+                // One step's external impulse `h ‖f_ext‖` floors the residual scale (see cg.rs).
+                let load_scale = h * self.external_force.iter().map(|f| f * f).sum::<Real>().sqrt();
+                let outcome = self.work.cg.solve(
+                    |p, out| match (&pieces_operator, system) {
+                        (Some(operator), _) => operator.multiply(contact_points, contacts, pinned, p, out),
+                        (None, Some(s)) => {
+                            s.pattern.mul_vec(&s.values, p, out);
+                        }
+                        (None, None) => {
+                            mass.apply(p, out);
+                            if mass_scale != 1.0 {
+                                out.iter_mut().for_each(|o| *o *= mass_scale);
+                            }
+                            discretization.add_stiffness_action(rotations, p, stiffness_scale, out);
+                            if let Some(points) = contact_points {
+                                cleave_contact::add_action(points, contacts, p, out);
+                            }
+                            add_pin_action(penalty_pins, h, p, out);
+                            for (o, &pin) in out.iter_mut().zip(pinned) {
+                                if pin {
+                                    *o = 0.0;
+                                }
+                            }
+                        }
+                    },
+                    |r, z| {
+                        if let Some(correction) = pieces_correction.as_mut() {
+                            correction.apply(x, r, z);
+                            return;
+                        }
+                        z.par_chunks_mut(3).zip(r.par_chunks(3)).zip(preconditioner).for_each(|((z, r), m)| {
+                            let y = m * Vector3::new(r[0], r[1], r[2]);
+                            z.copy_from_slice(y.as_slice());
+                        });
+                        if let Some(two_level) = two_level.as_deref_mut() {
+                            two_level.add_correction(r, z);
+                        }
+                    },
+                    &self.work.rhs,
+                    load_scale,
+                    &mut self.v,
+                    tolerance,
+                    max_iterations,
+                );
+                if !outcome.converged {
+                    return Err(StepErrorKind::CgNotConverged {
+                        iterations: outcome.iterations,
+                        residual: outcome.relative_residual,
+                        tolerance,
+                    });
+                }
+                (outcome.iterations, outcome.relative_residual)
+            }
+        })
+    }
+
+    /// Activates the near pairs the solution drives into each other and, with a factorization
+    /// at hand, solves them in as a low-rank update. Returns whether the step's solution is
+    /// final (`false`: assemble and solve again with them).
+    fn join_driven_pairs(&mut self, h: Real, passes: &mut usize, iterations: &mut usize) -> bool {
+        if *passes == DRIVEN_CONTACT_PASSES {
+            return true;
+        }
+        let Some(points) = self.constraints.contact_points.as_ref() else { return true };
+        let mut added = self.work.contacts.activate_driven(points, &self.v, h);
+        if added == 0 {
+            return true;
+        }
+        *passes += 1;
+        // With a factorization at hand, the pairs that joined are a low-rank update of it
+        // (low_rank.rs); their couplings join the pattern when the next step's contacts need
+        // them. Too many columns, or a capacitance that is not positive definite: the pattern
+        // grows and the matrix is factorized again with them.
+        if self.settings.solver != Solver::Cholesky || *passes != 1 {
+            return false;
+        }
+        let system = self.system.as_mut().expect("Cholesky builds the system");
+        let update = &mut self.work.low_rank;
+        update.begin(&self.v);
+        let contacts = &mut self.work.contacts;
+        loop {
+            update.push_contacts(points, &contacts.contacts()[contacts.contacts().len() - added..], &self.pinned);
+            if update.rank() > low_rank::MAX_COLUMNS
+                || !update.solve(|rhs, count| system.solve_columns_in_place(rhs, count), &mut self.v)
+            {
+                return false;
+            }
+            *iterations += 1;
+            if *passes == DRIVEN_CONTACT_PASSES {
+                return true;
+            }
+            added = contacts.activate_driven(points, &self.v, h);
+            if added == 0 {
+                return true;
+            }
+            *passes += 1;
+        }
+    }
+
+    /// Positions from `v⁺` (after the lagged normal forces and the optional angular momentum
+    /// correction), the divergence check, the end-of-step rotations and the report.
+    fn finish_step(
+        &mut self,
+        discretization: &dyn Discretization,
+        h: Real,
+        (iterations, residual): (usize, Real),
+        mut seconds: PhaseSeconds,
+    ) -> Result<StepReport, StepErrorKind> {
+        let mass = discretization.mass();
         // Update and check.
         let clock = Instant::now();
         if let Some(dof) = self.v.iter().position(|v| !v.is_finite()) {
@@ -1050,7 +1068,7 @@ impl Integrator {
     fn add_penalty_forces(&mut self) {
         let force = &mut self.work.force;
         if let Some(points) = &self.constraints.contact_points {
-            contact::add_forces(points, &self.work.contacts.contacts, force);
+            cleave_contact::add_forces(points, self.work.contacts.contacts(), force);
         }
         if let Some(pins) = &self.constraints.penalty_pins {
             for (i, target) in pins.targets.iter().enumerate() {
@@ -1069,13 +1087,13 @@ impl Integrator {
     /// matrix.
     fn add_penalty_matrix(
         constraints: &Constraints,
-        contacts: &ContactSet,
+        (contacts, scratch): (&ContactSet, &MatrixScratch),
         h: Real,
         system: &AssembledSystem,
         values: &mut [Real],
     ) {
         if let Some(points) = &constraints.contact_points {
-            contact::add_matrix(points, contacts, &system.pattern, values);
+            penalty::add_matrix(points, contacts.contacts(), scratch, &system.pattern, values);
         }
         if let Some(pins) = &constraints.penalty_pins {
             let k = Matrix3::identity() * (h * h * pins.stiffness);
@@ -1098,7 +1116,7 @@ impl Integrator {
         discretization.blocks().add_diagonal_blocks(&self.rotations, stiffness_scale, blocks);
         let mass = discretization.mass().diagonal();
         if let Some(points) = &self.constraints.contact_points {
-            contact::add_diagonal_blocks(points, &self.work.contacts.contacts, blocks);
+            cleave_contact::add_diagonal_blocks(points, self.work.contacts.contacts(), blocks);
         }
         if let Some(pins) = &self.constraints.penalty_pins {
             for i in 0..pins.points.len() {

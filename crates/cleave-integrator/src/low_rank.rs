@@ -13,7 +13,7 @@
 //! which needs one multi-column solve with the factorization already computed and an `r × r`
 //! Cholesky (`r` the number of columns), not the pattern those pairs couple.
 
-use crate::contact::{self, Contact};
+use cleave_contact::{Contact, for_each_entry};
 use cleave_core::{Embedding, Real};
 use nalgebra::{DMatrix, DVector};
 
@@ -75,7 +75,7 @@ impl LowRankUpdate {
                     continue;
                 }
                 let direction = eigen.eigenvectors.column(k) * lambda.sqrt();
-                contact::for_each_entry(points, c, |node, w| {
+                for_each_entry(points, c, |node, w| {
                     for a in 0..3 {
                         let dof = 3 * node as usize + a;
                         if !pinned[dof] {
@@ -131,7 +131,7 @@ impl LowRankUpdate {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::contact::{ContactKind, Row};
+    use cleave_contact::{ContactKind, Row};
     use cleave_core::{AssemblyPattern, Matrix3, SparseCholesky, Vector3};
 
     /// A contact row over `points` with `weights`, `P = a n nᵀ + b (I − n nᵀ)`.
@@ -240,7 +240,7 @@ mod tests {
             // The dense matrix with every contact so far.
             for c in pass {
                 let mut w = Vec::new();
-                contact::for_each_entry(&points, c, |node, weight| w.push((node as usize, weight)));
+                for_each_entry(&points, c, |node, weight| w.push((node as usize, weight)));
                 for &(i, wi) in &w {
                     for &(j, wj) in &w {
                         for a in 0..3 {

@@ -21,9 +21,9 @@
 //! positive definite, so CG stays valid for any contacts; inexactness costs iterations only.
 
 use crate::constraints::Constraints;
-use crate::contact::{self, Contact};
 use crate::error::StepErrorKind;
 use crate::system::AssembledSystem;
+use cleave_contact::{Contact, for_each_entry};
 use cleave_core::{AssemblyPattern, Discretization, Embedding, Matrix3, Real, SparseCholesky, Vector3};
 use rayon::prelude::*;
 
@@ -273,7 +273,7 @@ impl PiecePreconditioner {
         let mut pieces = std::mem::take(&mut self.contact_pieces);
         for c in contacts {
             pieces.clear();
-            contact::for_each_entry(points, c, |n, _| {
+            for_each_entry(points, c, |n, _| {
                 let p = self.coarse_of_node[n as usize];
                 if p != NO_MODES {
                     pieces.push(p);
@@ -347,7 +347,7 @@ impl PiecePreconditioner {
         let mut sides = std::mem::take(&mut self.sides);
         for c in contacts {
             sides.clear();
-            contact::for_each_entry(points, c, |n, w| {
+            for_each_entry(points, c, |n, w| {
                 if let Some((p, d)) = self.offset(n, x) {
                     let g = phi(&d) * w;
                     match sides.iter_mut().find(|s| s.0 == p) {
@@ -402,7 +402,7 @@ impl PieceOperator<'_> {
     ) {
         self.pattern.mul_vec(self.values, p, out);
         if let Some(points) = points {
-            contact::add_action(points, contacts, p, out);
+            cleave_contact::add_action(points, contacts, p, out);
             for (d, (o, &pin)) in out.iter_mut().zip(pinned).enumerate() {
                 if pin {
                     *o = p[d];

@@ -19,8 +19,8 @@
 //! `docs/results/voxel-bench.md`).
 
 use crate::constraints::PenaltyPins;
-use crate::contact::{self, Contact};
 use crate::error::StepErrorKind;
+use cleave_contact::{Contact, for_each_entry};
 use cleave_core::{AssemblyPattern, CoarseSpace, Discretization, Embedding, Matrix3, Real, SparseCholesky};
 use rayon::prelude::*;
 
@@ -284,7 +284,7 @@ impl TwoLevel {
         for c in contacts.iter().filter(|c| c.matrix.iter().all(|m| m.is_finite())) {
             nodes.clear();
             weights.clear();
-            contact::for_each_entry(points, c, |n, w| {
+            for_each_entry(points, c, |n, w| {
                 nodes.push(n);
                 weights.push(w);
             });

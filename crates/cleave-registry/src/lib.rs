@@ -12,7 +12,7 @@ mod voxel;
 pub use backend::{Backend, BackendError, BuiltSolid, Capabilities, Region, ResolvedPins, Shape, SolidRequest};
 pub use dg::DgBackend;
 pub use virtualnode::{SLIVER_OFFSET, VirtualNodeBackend, sliver_beam};
-pub use voxel::{VoxelBackend, covered_faces};
+pub use voxel::VoxelBackend;
 
 /// Every registered backend, in report order.
 pub fn registered() -> Vec<Box<dyn Backend>> {

@@ -1,6 +1,6 @@
 //! The voxel backend (mueller2004): its scene settings and its comparison variant. Nodal, so
 //! Dirichlet data and pins are imposed strongly by pinning the nodes in the region. In the
-//! comparison it cuts along whole cube faces ([`covered_faces`]: the cubes on both sides of every
+//! comparison it cuts along whole cube faces (`cleave_voxel::covered_faces`: the cubes on both sides of every
 //! face a cut covers get their own nodes), which for a cut on cube faces is the conforming
 //! cracked hexahedral grid of benchmarks.md §5; scenes cannot cut it yet.
 
@@ -12,7 +12,7 @@ use cleave_testkit::compare::{
     BoxGrid, BuildError, BuiltProblem, CompareBackend, CutError, CutProblem, DirichletSpec, ExtremeCase, NotApplicable,
     corner_pushed_in, nodal_problem, stretch_start,
 };
-use cleave_voxel::{CubeFace, VoxelMesh};
+use cleave_voxel::{VoxelMesh, covered_faces};
 
 /// Registration of `cleave-voxel`: one variant, trilinear cubes with the closed-form stiffness.
 #[derive(Clone, Copy, Debug, Default)]
@@ -56,7 +56,7 @@ impl CompareBackend for VoxelBackend {
         crate::only_variant("voxel", variant, "trilinear").map_err(|e| CutError::Build(e.0))?;
         let mesh = VoxelMesh::from_box(*material, grid.origin, grid.h, grid.dims)
             .map_err(|e| CutError::Build(e.to_string()))?;
-        let faces = covered_faces(&mesh, surface)?;
+        let faces = covered_faces(&mesh, surface).map_err(|e| CutError::CannotCut(e.to_string()))?;
         let (cut, change) = mesh.separate_faces(&faces).map_err(|e| CutError::Build(e.to_string()))?;
         let elements = cut.num_cubes();
         Ok(CutProblem { built: nodal_problem(Box::new(cut), elements, dirichlet), change })
@@ -75,90 +75,6 @@ impl CompareBackend for VoxelBackend {
             ExtremeCase::Stretch100 => Ok(stretch_start(built, grid)),
         }
     }
-}
-
-/// The interior cube faces `surface` covers, for cutting along whole faces. A face is covered
-/// when it lies in the plane of a triangle (every corner within 1e-9 h of it) and its centre and
-/// its four quarter points (halfway between centre and corners) lie in the union of such
-/// triangles; a face with some but not all of those five points covered is only partly cut,
-/// which cubes cannot express ([`CutError::CannotCut`]), and so is a surface that covers no face
-/// (e.g. a plane off the cube faces).
-pub fn covered_faces(mesh: &VoxelMesh, surface: &CutSurface) -> Result<Vec<CubeFace>, CutError> {
-    let h = mesh.cell_size();
-    let origin = mesh.origin();
-    let tolerance = 1e-9 * h;
-    let mut faces = Vec::new();
-    for cell in mesh.cells() {
-        for axis in 0..3 {
-            let mut next = *cell;
-            next[axis] += 1;
-            if mesh.cube_at(next).is_none() {
-                continue;
-            }
-            let face = CubeFace { cell: *cell, axis };
-            let coordinate = origin[axis] + h * next[axis] as Real;
-            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-            let centre = [origin[u] + h * (cell[u] as Real + 0.5), origin[v] + h * (cell[v] as Real + 0.5)];
-            let samples: [[Real; 2]; 5] = std::array::from_fn(|k| match k {
-                0 => centre,
-                _ => {
-                    let (su, sv) = (if k & 1 == 1 { 0.25 } else { -0.25 }, if k >= 3 { 0.25 } else { -0.25 });
-                    [centre[0] + su * h, centre[1] + sv * h]
-                }
-            });
-            let covered = match surface {
-                CutSurface::Plane { point, normal } => {
-                    let on_plane = (0..3).all(|a| a == axis || normal[a] == 0.0)
-                        && normal[axis] != 0.0
-                        && (point[axis] - coordinate).abs() <= tolerance;
-                    if on_plane { 5 } else { 0 }
-                }
-                CutSurface::Triangles(triangles) => {
-                    let coplanar: Vec<[[Real; 2]; 3]> = triangles
-                        .iter()
-                        .filter(|t| t.iter().all(|p| (p[axis] - coordinate).abs() <= tolerance))
-                        .map(|t| t.map(|p| [p[u], p[v]]))
-                        .collect();
-                    samples.iter().filter(|s| coplanar.iter().any(|t| in_triangle(t, s, tolerance))).count()
-                }
-            };
-            match covered {
-                0 => {}
-                5 => faces.push(face),
-                _ => {
-                    let c = cell;
-                    return Err(CutError::CannotCut(format!(
-                        "the cut covers the face of cube ({}, {}, {}) towards +{} in part; voxel cubes separate \
-                         along whole faces only",
-                        c[0],
-                        c[1],
-                        c[2],
-                        ['x', 'y', 'z'][axis]
-                    )));
-                }
-            }
-        }
-    }
-    if faces.is_empty() {
-        return Err(CutError::CannotCut("the cut covers no cube face (voxel cubes separate along faces only)".into()));
-    }
-    Ok(faces)
-}
-
-/// Whether the 2D point `p` lies in the closed triangle `t` (either orientation), with `tolerance`
-/// as a distance.
-fn in_triangle(t: &[[Real; 2]; 3], p: &[Real; 2], tolerance: Real) -> bool {
-    let cross =
-        |a: &[Real; 2], b: &[Real; 2], c: &[Real; 2]| (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
-    let area = cross(&t[0], &t[1], &t[2]);
-    if area == 0.0 {
-        return false;
-    }
-    (0..3).all(|i| {
-        let (a, b) = (&t[i], &t[(i + 1) % 3]);
-        let edge = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
-        cross(a, b, p) * area.signum() >= -tolerance * edge
-    })
 }
 
 /// The scene settings of the voxel backend.

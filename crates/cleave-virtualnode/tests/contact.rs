@@ -7,8 +7,8 @@
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real, Vector3};
 use cleave_geometry::{TriangleMesh, closest_point_on_triangle};
 use cleave_integrator::{
-    Constraints, Integrator, MeshCollider, PlaneCollider, Preconditioner, PreparedContact, Settings, Solver,
-    StepReport, SurfaceContact,
+    Constraints, ContactSet, Integrator, MeshCollider, PlaneCollider, Preconditioner, Settings, Solver, StepReport,
+    SurfaceContact,
 };
 use cleave_virtualnode::VirtualNodeMesh;
 
@@ -503,7 +503,7 @@ fn crossed_bars_meet_edge_on_edge() {
     assert!(with > -0.01 * 0.05, "with edge contact they meet at the edges: {with} m");
 }
 
-/// Contact structures built ahead for the new surface (`PreparedContact`) give the run that
+/// Contact structures built ahead for the new surface (`ContactSet::new`) give the run that
 /// building them at the change gives, bit for bit; ones built for another surface (the one
 /// before the cut) are not used, and the run is the same too.
 #[test]
@@ -522,11 +522,11 @@ fn contact_structures_built_ahead_are_used_only_for_their_own_surface() {
             mesh.cut(&CutSurface::Plane { point: Point3::new(0.0, 0.0, 0.0512), normal: Vector3::z() }).unwrap();
         let constraints = contact_constraints(&mut mesh, vec![ground(2e4, 0.5)], Some((2e4, 0.5)));
         let prepared = prepare.map(|own| match own {
-            true => PreparedContact::new(&constraints, mesh.rest_dofs()),
-            false => PreparedContact::new(&before_cut, &rest_before),
+            true => ContactSet::new(&constraints.colliders(), mesh.rest_dofs()),
+            false => ContactSet::new(&before_cut.colliders(), &rest_before),
         });
         let expected = prepare == Some(true);
-        let used = integrator.apply_topology_change_prepared(&mesh, &change, constraints, prepared).unwrap();
+        let used = integrator.apply_topology_change_with(&mesh, &change, constraints, prepared).unwrap();
         assert_eq!(used, expected, "prepared {prepare:?}: used {used}");
         for _ in 0..20 {
             integrator.step(&mesh).unwrap();

@@ -10,7 +10,9 @@
 //! let beam = VoxelMesh::from_box(material, Point3::origin(), 0.25, [16, 4, 4]).unwrap();
 //! ```
 
+pub mod faces;
 pub mod mesh;
 pub mod stiffness;
 
+pub use faces::covered_faces;
 pub use mesh::{CubeFace, VoxelError, VoxelMesh};

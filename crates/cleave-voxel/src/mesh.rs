@@ -32,6 +32,15 @@ pub enum VoxelError {
     /// A face to separate does not lie between two cubes of the mesh.
     #[error("face of cube ({0}, {1}, {2}) towards +{3} does not lie between two cubes of the mesh")]
     NotInteriorFace(i32, i32, i32, char),
+    /// A cut covers part of a cube face: cubes separate along whole faces only.
+    #[error(
+        "the cut covers the face of cube ({0}, {1}, {2}) towards +{3} in part; voxel cubes separate along whole \
+         faces only"
+    )]
+    PartlyCoveredFace(i32, i32, i32, char),
+    /// A cut covers no cube face.
+    #[error("the cut covers no cube face (voxel cubes separate along faces only)")]
+    NoFaceCovered,
 }
 
 /// The face between the cube at integer coordinates `cell` and its neighbour at `cell + e_axis`.

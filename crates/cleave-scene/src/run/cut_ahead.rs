@@ -3,7 +3,7 @@
 
 use super::*;
 use cleave_core::{Discretization, EmbeddedSurface, Piece, Real, TopologyChange, TopologyError};
-use cleave_integrator::{Constraints, PreparedContact};
+use cleave_integrator::{Constraints, ContactSet};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -25,7 +25,7 @@ pub(super) struct CutCopy {
     pub(super) surface: Option<EmbeddedSurface>,
     pub(super) pieces: Vec<Piece>,
     /// The integrator's contact structures of the new surface (with surface contact).
-    pub(super) contact: Option<PreparedContact>,
+    pub(super) contact: Option<ContactSet>,
     /// Wall time the preparation took to copy and cut the body and make its surface, pieces and
     /// contact structures [s].
     pub(super) seconds: Real,
@@ -114,7 +114,7 @@ impl Simulation {
                         surface_contact: Some(surface_contact_on(&settings, surface)),
                         ..Default::default()
                     };
-                    PreparedContact::new(&constraints, discretization.rest_dofs())
+                    ContactSet::new(&constraints.colliders(), discretization.rest_dofs())
                 });
                 Ok(CutCopy { discretization, change, surface, pieces, contact, seconds: clock.elapsed().as_secs_f64() })
             })

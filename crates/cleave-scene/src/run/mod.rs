@@ -360,7 +360,7 @@ impl Simulation {
             ..constraints
         };
         self.integrator
-            .apply_topology_change_prepared(d, &change, constraints, prepared_contact)
+            .apply_topology_change_with(d, &change, constraints, prepared_contact)
             .map_err(|source| SceneError::Step { path: self.path.clone(), source })?;
         self.probes = d.embed(&self.probe_points).map_err(|e| build_error(format!("probe after a cut: {e}")))?;
         self.surface_triangles = surface.triangles;
