@@ -11,6 +11,7 @@ use cleave_core::{
     BlockSet, BlockSetBuilder, CoarseSpace, Discretization, DofRemap, EmbedError, Embedding, FieldSample, FrameRemap,
     Mass, Material, Matrix3, Point3, Real, RotationStats, TopologyChange, Vector3,
 };
+use cleave_geometry::UnionFind;
 use nalgebra::DMatrix;
 use std::collections::{HashMap, HashSet};
 
@@ -63,24 +64,6 @@ impl CubeFace {
             c[v] += (k >> 1) as i32;
             c
         })
-    }
-}
-
-/// Union–find over node copies (one per cube corner).
-fn find(parent: &mut [u32], mut i: u32) -> u32 {
-    while parent[i as usize] != i {
-        parent[i as usize] = parent[parent[i as usize] as usize];
-        i = parent[i as usize];
-    }
-    i
-}
-
-fn unite(parent: &mut [u32], a: u32, b: u32) {
-    let (ra, rb) = (find(parent, a), find(parent, b));
-    if ra != rb {
-        // The smaller root wins, so a class is represented by its first copy.
-        let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
-        parent[hi as usize] = lo;
     }
 }
 
@@ -194,7 +177,7 @@ impl VoxelMesh {
             [cell[0] + o[0], cell[1] + o[1], cell[2] + o[2]]
         };
         // Copy 8·cube + corner; united across uncut faces, and wholly at untouched nodes.
-        let mut parent: Vec<u32> = (0..8 * cells.len() as u32).collect();
+        let mut copies = UnionFind::new(8 * cells.len());
         let cut_set: HashSet<CubeFace> = cut_faces.iter().copied().collect();
         let touched: HashSet<[i32; 3]> = cut_faces.iter().flat_map(|f| f.corners()).collect();
         let mut first_copy: HashMap<[i32; 3], u32> = HashMap::with_capacity(cells.len() * 2);
@@ -202,7 +185,7 @@ impl VoxelMesh {
             let coords = coords_of(copy);
             if !touched.contains(&coords) {
                 let first = *first_copy.entry(coords).or_insert(copy as u32);
-                unite(&mut parent, first, copy as u32);
+                copies.union(first as usize, copy);
             }
         }
         if !cut_faces.is_empty() {
@@ -216,14 +199,14 @@ impl VoxelMesh {
                     }
                     // Corner c of this cube with bit `axis` set is corner c − 2^axis of the next.
                     for c in (0..8).filter(|c| c & (1 << axis) != 0) {
-                        unite(&mut parent, (8 * cube + c) as u32, 8 * neighbour + (c - (1 << axis)) as u32);
+                        copies.union(8 * cube + c, 8 * neighbour as usize + (c - (1 << axis)));
                     }
                 }
             }
         }
         // One node per class, numbered z-major by lattice coordinates, then by first copy.
         let mut classes: Vec<([i32; 3], u32)> = (0..8 * cells.len() as u32)
-            .filter(|&copy| find(&mut parent, copy) == copy)
+            .filter(|&copy| copies.find(copy as usize) == copy as usize)
             .map(|copy| (coords_of(copy as usize), copy))
             .collect();
         classes.sort_unstable_by_key(|(c, copy)| (c[2], c[1], c[0], *copy));
@@ -233,7 +216,7 @@ impl VoxelMesh {
         }
         let node_coords: Vec<[i32; 3]> = classes.iter().map(|(c, _)| *c).collect();
         let cube_nodes: Vec<[u32; 8]> = (0..cells.len())
-            .map(|cube| std::array::from_fn(|c| class_node[&find(&mut parent, (8 * cube + c) as u32)]))
+            .map(|cube| std::array::from_fn(|c| class_node[&(copies.find(8 * cube + c) as u32)]))
             .collect();
         let rest: Vec<Real> =
             node_coords.iter().flat_map(|c| (0..3).map(move |a| origin[a] + h * c[a] as Real)).collect();
