@@ -251,10 +251,13 @@ fn density(d: &dyn Discretization) -> Real {
 }
 
 /// A bent state: the body bent about an axis through its centroid by an angle that grows along
-/// its longest extent (about 1.2 rad end to end), twisted, then rotated as a whole. Its DOFs are
-/// the mass-weighted projection `x_k = ρ ∫ bend(X) N_k / m_k` (exact L2 projection for an
-/// orthonormal consistent basis, a smoothed interpolation for lumped nodal ones), so neighbouring
-/// frames get visibly different rotations on every backend.
+/// its longest extent (about 1.2 rad end to end), twisted, then rotated as a whole, so that
+/// neighbouring frames get visibly different rotations on every backend. Its DOFs: for a nodal
+/// basis (a partition of unity, `Σ_k ∫ N_k` = the body's volume) the weighted average
+/// `x_k = ∫ bend(X) N_k / ∫ N_k` over each node's support, whatever the mass lumping (a lumping
+/// that moves mass between a duplicate's nodes would pull a node with more mass than `ρ ∫ N_k`
+/// towards the origin); otherwise the mass-weighted projection `x_k = ρ ∫ bend(X) N_k / m_k`
+/// (the exact L2 projection for an orthonormal consistent basis).
 pub fn bent_state(d: &dyn Discretization) -> Vec<Real> {
     let mut lo = Vector3::repeat(Real::MAX);
     let mut hi = Vector3::repeat(Real::MIN);
@@ -281,9 +284,17 @@ pub fn bent_state(d: &dyn Discretization) -> Vec<Real> {
     };
     let mut projected = vec![0.0; d.rest_dofs().len()];
     d.add_load(&bend, &mut projected);
-    let rho = density(d);
-    for (x, m) in projected.iter_mut().zip(d.mass().diagonal()) {
-        *x *= rho / m;
+    let mut support = vec![0.0; projected.len()];
+    d.add_load(&|_: &Point3<Real>| Vector3::repeat(1.0), &mut support);
+    let nodal =
+        (support.iter().step_by(3).sum::<Real>() / volume - 1.0).abs() < 1e-9 && support.iter().all(|&s| s > 0.0);
+    if nodal {
+        projected.iter_mut().zip(&support).for_each(|(x, s)| *x /= s);
+    } else {
+        let rho = density(d);
+        for (x, m) in projected.iter_mut().zip(d.mass().diagonal()) {
+            *x *= rho / m;
+        }
     }
     projected
 }

@@ -31,5 +31,5 @@ pub mod tet;
 /// fast fixed-seed hasher (deterministic iteration too) instead of SipHash.
 pub(crate) type FastMap<K, V> = std::collections::HashMap<K, V, foldhash::fast::FixedState>;
 
-pub use mesh::{CutStats, MassLumping, VirtualNodeError, VirtualNodeMesh, box_surface};
+pub use mesh::{CutStats, MassLumping, SPECK_VOLUME, VirtualNodeError, VirtualNodeMesh, box_surface};
 pub use surface::{RenderSurface, SurfaceKind};
