@@ -1,14 +1,15 @@
-//! Contact between and within cut pieces, friction and mesh colliders, on virtual node meshes
-//! driven by the integrator (docs/math/contact.md): a cut block's halves rest on each other,
-//! pieces thrown at each other conserve momentum, a block on a slope sticks or slides as
-//! Coulomb says, the faces of an unfinished cut do not pass through each other, and a mesh
-//! collider made of two triangles is the plane collider.
+//! Contact on cut bodies, on virtual node meshes driven by the integrator (docs/math/contact.md):
+//! a cut block's halves rest on each other, the energy right after a cut counts the new surface,
+//! the faces of an unfinished cut do not pass through each other, crossed bars meet edge on
+//! edge, contact structures built ahead are used only for their own surface, a crack ending
+//! inside the material is no contact at rest, and the piecewise preconditioner solves what the
+//! direct solver solves. Contact's tests that need no cut (friction on a slope, mesh and plane
+//! colliders, momentum of thrown bodies) use plain embedding rows in
+//! `crates/cleave-contact/tests/step.rs`.
 
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real, Vector3};
-use cleave_geometry::{TriangleMesh, closest_point_on_triangle};
 use cleave_integrator::{
-    Constraints, ContactSet, Integrator, MeshCollider, PlaneCollider, Preconditioner, Settings, Solver, StepReport,
-    SurfaceContact,
+    Constraints, ContactSet, Integrator, PlaneCollider, Preconditioner, Settings, Solver, StepReport, SurfaceContact,
 };
 use cleave_virtualnode::VirtualNodeMesh;
 
@@ -47,17 +48,6 @@ fn contact_constraints(
     Constraints { contact_points: Some(s.embedding), planes, surface_contact, ..Default::default() }
 }
 
-fn momentum(mesh: &VirtualNodeMesh, x: &[Real], v: &[Real]) -> (Vector3<Real>, Vector3<Real>) {
-    let m = mesh.mass().diagonal();
-    let (mut p, mut l) = (Vector3::zeros(), Vector3::zeros());
-    for k in 0..m.len() / 3 {
-        let mv = Vector3::new(m[3 * k] * v[3 * k], m[3 * k + 1] * v[3 * k + 1], m[3 * k + 2] * v[3 * k + 2]);
-        p += mv;
-        l += Vector3::new(x[3 * k], x[3 * k + 1], x[3 * k + 2]).cross(&mv);
-    }
-    (p, l)
-}
-
 #[test]
 fn halves_of_a_cut_block_rest_on_each_other() {
     let material = Material::new(1e6, 0.3, 1000.0).unwrap();
@@ -90,141 +80,6 @@ fn halves_of_a_cut_block_rest_on_each_other() {
     assert!(e_end <= e_settled + 1e-9 * e_settled.abs().max(1.0), "energy grows at rest: {e_settled} -> {e_end}");
 }
 
-/// How deep the surface points of one piece lie inside another, at most: points whose
-/// generalized winding number with respect to another piece's closed surface is above ½, by
-/// their distance to that surface (an independent test of the contact: it knows nothing of
-/// rows, normals or pairs).
-fn deepest_inside(triangles: &[[u32; 3]], piece_of_point: &[usize], positions: &[Point3<Real>]) -> Real {
-    let pieces = piece_of_point.iter().max().map_or(0, |&p| p + 1);
-    let mut deepest: Real = 0.0;
-    for b in 0..pieces {
-        let own: Vec<[u32; 3]> = triangles.iter().filter(|t| piece_of_point[t[0] as usize] == b).copied().collect();
-        let surface = TriangleMesh { vertices: positions.to_vec(), triangles: own.clone() };
-        for (i, p) in positions.iter().enumerate() {
-            if piece_of_point[i] != b && surface.winding_number(p) > 0.5 {
-                let distance = own
-                    .iter()
-                    .map(|t| (closest_point_on_triangle(p, &t.map(|k| positions[k as usize])).0 - p).norm())
-                    .fold(Real::INFINITY, Real::min);
-                deepest = deepest.max(distance);
-            }
-        }
-    }
-    deepest
-}
-
-#[test]
-fn pieces_thrown_at_each_other_conserve_momentum() {
-    let material = Material::new(1e7, 0.3, 1000.0).unwrap();
-    let mut mesh = VirtualNodeMesh::from_box(Point3::origin(), Point3::new(0.4, 0.2, 0.2), 0.05, material).unwrap();
-    mesh.cut(&CutSurface::Plane { point: Point3::new(0.2, 0.0, 0.0), normal: Vector3::x() }).unwrap();
-    let pieces = mesh.pieces();
-    assert_eq!(pieces.len(), 2);
-    let rest = mesh.rest_dofs().to_vec();
-    let mean_x =
-        |p: &cleave_core::Piece| p.nodes.iter().map(|&n| rest[3 * n as usize]).sum::<Real>() / p.nodes.len() as Real;
-    let right_piece = if mean_x(&pieces[0]) > mean_x(&pieces[1]) { 0 } else { 1 };
-    // Apart by 2 cm and offset sideways (an oblique impact that sets them spinning), closing at
-    // 2 m/s; no gravity, no ground.
-    let (mut x, mut v) = (rest.clone(), vec![0.0; rest.len()]);
-    for &n in &pieces[right_piece].nodes {
-        let n = n as usize;
-        x[3 * n] += 0.02;
-        x[3 * n + 1] += 0.08;
-        v[3 * n] = -1.0;
-    }
-    for &n in &pieces[1 - right_piece].nodes {
-        let n = n as usize;
-        v[3 * n] = 1.0;
-        v[3 * n + 2] = 0.1;
-    }
-    let cases = [
-        (0.0, true, "frictionless"),
-        (0.5, true, "mu = 0.5"),
-        (0.0, false, "frictionless, plain step"),
-        (0.5, false, "mu = 0.5, plain step"),
-    ];
-    for (friction, conserve, label) in cases {
-        let constraints = contact_constraints(&mut mesh, Vec::new(), Some((1e6, friction)));
-        let surface_points = constraints.contact_points.clone().unwrap();
-        let surface_triangles = constraints.surface_contact.as_ref().unwrap().triangles.clone();
-        let piece_of_point: Vec<usize> = (0..surface_points.len())
-            .map(|i| {
-                let node = surface_points.row(i).0[0];
-                usize::from(!pieces[0].nodes.contains(&node))
-            })
-            .collect();
-        let mut step_settings = settings(Vector3::zeros());
-        step_settings.conserve_angular_momentum = conserve;
-        let mut integrator = Integrator::new(&mesh, step_settings, constraints).unwrap();
-        integrator.set_state(&mesh, x.clone(), v.clone());
-        let (p0, l0) = momentum(&mesh, &x, &v);
-        let mut contacts = 0;
-        let (mut worst_p, mut worst_l, mut worst_inside): (Real, Real, Real) = (0.0, 0.0, 0.0);
-        for _ in 0..30 {
-            let report = integrator.step(&mesh).unwrap();
-            contacts = contacts.max(report.contacts.surface);
-            let positions: Vec<Point3<Real>> =
-                (0..surface_points.len()).map(|i| surface_points.point(integrator.positions(), i)).collect();
-            worst_inside = worst_inside.max(deepest_inside(&surface_triangles, &piece_of_point, &positions));
-            let (p, l) = momentum(&mesh, integrator.positions(), integrator.velocities());
-            worst_p = worst_p.max((p - p0).norm() / p0.norm().max(pieces[0].mass * 1.0));
-            worst_l = worst_l.max((l - l0).norm() / l0.norm());
-        }
-        let (x_end, v_end, m) = (integrator.positions(), integrator.velocities(), mesh.mass().diagonal());
-        let centre = |piece: usize, of: &[Real]| {
-            let nodes = &pieces[piece].nodes;
-            let mass: Real = nodes.iter().map(|&n| m[3 * n as usize]).sum();
-            nodes.iter().map(|&n| m[3 * n as usize] * of[3 * n as usize]).sum::<Real>() / mass
-        };
-        let (left_x, right_x) = (centre(1 - right_piece, x_end), centre(right_piece, x_end));
-        let (left_vx, right_vx) = (centre(1 - right_piece, v_end), centre(right_piece, v_end));
-        println!(
-            "{label}: up to {contacts} surface contacts; after 0.5 s the centres are at x = {left_x:.3} and {right_x:.3} m, moving at {left_vx:+.3} and {right_vx:+.3} m/s; worst relative change of linear momentum {worst_p:.1e}, of angular momentum {worst_l:.1e}; deepest point of one piece inside the other {worst_inside:.1e} m"
-        );
-        assert!(contacts > 0, "the pieces must meet");
-        if friction == 0.0 {
-            assert!(left_x < right_x && left_vx < right_vx, "the pieces must bounce apart, not pass through");
-        }
-        // With friction the oblique impact stops the sliding of one face on the other and the
-        // two cubes turn on together as one pair, touching: no point of one goes deeper into
-        // the other than penalty contact at a 2 m/s impact allows (v √(m/k) with the 4 kg
-        // reduced mass and 64 contacts of 1e6 N/m: 0.5 mm; a tenth of a step's travel bounds it).
-        assert!(worst_inside < 2e-3, "{label}: a point went {worst_inside} m into the other piece");
-        assert!(worst_p < 1e-9, "{label}: linear momentum changed by {worst_p}");
-        // The plain linearly implicit step changes the angular momentum in two ways: the
-        // elastic forces, linearized with the start-of-step rotations, have a torque on their own
-        // stressed, spinning piece; and a friction pair acts on two points the penalty holds
-        // apart, a couple. The step removes both (docs/math/corotated-integrator.md, "Angular
-        // momentum"); without that the change is 1.6e-4 frictionless and 7.8e-4 with friction.
-        if conserve {
-            assert!(worst_l < 1e-9, "{label}: angular momentum changed by {worst_l}");
-        } else {
-            assert!(worst_l > 1e-5, "{label}: the plain step should change the angular momentum: {worst_l}");
-        }
-    }
-}
-
-/// Slides a 0.1 m cube on the ground under gravity tilted by 30° (the same as a 30° slope) and
-/// returns the x positions of its centre of mass over time.
-fn slide(friction: Real) -> Vec<(Real, Real)> {
-    let material = Material::new(1e6, 0.3, 1000.0).unwrap();
-    let mut mesh = VirtualNodeMesh::from_box(Point3::origin(), Point3::new(0.1, 0.1, 0.1), 0.05, material).unwrap();
-    let theta = 30.0_f64.to_radians();
-    let gravity = Vector3::new(theta.sin(), 0.0, -theta.cos()) * 9.81;
-    let constraints = contact_constraints(&mut mesh, vec![ground(2e5, friction)], None);
-    let mut integrator = Integrator::new(&mesh, settings(gravity), constraints).unwrap();
-    let m = mesh.mass().diagonal().to_vec();
-    let mut track = Vec::new();
-    for _ in 0..90 {
-        integrator.step(&mesh).unwrap();
-        let x = integrator.positions();
-        let cx = (0..m.len() / 3).map(|k| m[3 * k] * x[3 * k]).sum::<Real>() / mesh.mass().total();
-        track.push((integrator.time(), cx));
-    }
-    track
-}
-
 /// The energy of the state right after a cut, asked for before any step: the ground contacts
 /// are found then for the new surface (a topology change no longer finds them up front), so
 /// the penalty energy is exactly Σ ½ k min(d, 0)² over the new surface points, computed here
@@ -255,45 +110,6 @@ fn energy_right_after_a_cut_counts_the_new_surface_on_the_ground() {
     assert!((after.penalty_energy - expected).abs() < 1e-12 * expected, "{} vs {expected}", after.penalty_energy);
     let rest_of = |e: &cleave_integrator::StepReport| e.kinetic_energy + e.elastic_energy + e.gravitational_energy;
     assert!((rest_of(&after) - rest_of(&before)).abs() < 1e-12 * rest_of(&before).abs().max(1e-6));
-}
-
-#[test]
-fn a_block_on_a_slope_sticks_or_slides_as_coulomb_says() {
-    let g = 9.81;
-    let theta = 30.0_f64.to_radians();
-    // Placed on the slope at rest, the block first sinks into the penalty layer while friction
-    // builds up with the normal force (a few millimetres); from 0.5 s on it must not move.
-    let stuck = slide(0.7);
-    let moved = stuck.last().unwrap().1 - stuck[29].1;
-    let sliding = slide(0.3);
-    // Acceleration by a least-squares parabola through the positions after 0.25 s.
-    let samples: Vec<(Real, Real)> = sliding.iter().copied().filter(|s| s.0 >= 0.25).collect();
-    assert!(sliding.last().unwrap().1 - sliding[0].1 > 0.5, "mu = 0.3 must let the block slide");
-    let fit = {
-        let n = samples.len() as Real;
-        let mut s = [[0.0; 3]; 3];
-        let mut b = [0.0; 3];
-        for &(t, x) in &samples {
-            let basis = [1.0, t, t * t];
-            for i in 0..3 {
-                for j in 0..3 {
-                    s[i][j] += basis[i] * basis[j] / n;
-                }
-                b[i] += basis[i] * x / n;
-            }
-        }
-        let m = nalgebra::Matrix3::from_fn(|i, j| s[i][j]);
-        m.try_inverse().unwrap() * nalgebra::Vector3::new(b[0], b[1], b[2])
-    };
-    let acceleration = 2.0 * fit[2];
-    let expected = g * (theta.sin() - 0.3 * theta.cos());
-    println!(
-        "mu = 0.7: the block moves {:.2e} m from 0.5 s to 1.5 s (creep of the regularized stick); mu = 0.3: acceleration {acceleration:.4} m/s^2 vs g (sin 30 - 0.3 cos 30) = {expected:.4} ({:+.2} %)",
-        moved,
-        100.0 * (acceleration / expected - 1.0)
-    );
-    assert!(moved.abs() < 1e-3, "mu = 0.7 must hold the block: it moved {moved} m");
-    assert!((acceleration / expected - 1.0).abs() < 0.05, "sliding acceleration {acceleration} vs {expected}");
 }
 
 const SLIT: Real = 0.1537;
@@ -369,48 +185,6 @@ fn faces_of_an_unfinished_cut_do_not_pass_through_each_other() {
     println!("overlap of the slit's faces: {:.2e} m with contact, {:.2e} m without", crossing[0], crossing[1]);
     assert!(crossing[1] > 0.01, "the squeeze must push the faces through each other without contact");
     assert!(crossing[0] < 1e-3, "with contact the faces may not cross: {}", crossing[0]);
-}
-
-#[test]
-fn a_two_triangle_mesh_collider_is_the_plane_collider() {
-    let material = Material::new(5e5, 0.3, 1000.0).unwrap();
-    let run = |mesh_collider: bool| -> Vec<Real> {
-        let mut mesh =
-            VirtualNodeMesh::from_box(Point3::new(0.0, 0.0, 0.03), Point3::new(0.1, 0.1, 0.13), 0.05, material)
-                .unwrap();
-        let mut constraints = contact_constraints(&mut mesh, Vec::new(), None);
-        if mesh_collider {
-            let l = 10.0;
-            let vertices = vec![
-                Point3::new(-l, -l, 0.0),
-                Point3::new(l, -l, 0.0),
-                Point3::new(l, l, 0.0),
-                Point3::new(-l, l, 0.0),
-            ];
-            constraints
-                .meshes
-                .push(MeshCollider::new(vertices, vec![[0, 1, 2], [0, 2, 3]], 2e5, 0.0, 0.5, 0.01).unwrap());
-        } else {
-            constraints.planes.push(ground(2e5, 0.5));
-        }
-        // Thrown sideways onto the ground: contact and friction act.
-        let mut integrator = Integrator::new(&mesh, settings(Vector3::new(0.0, 0.0, -9.81)), constraints).unwrap();
-        let v: Vec<Real> = mesh.rest_dofs().chunks_exact(3).flat_map(|_| [0.8, 0.3, 0.0]).collect();
-        integrator.set_state(&mesh, mesh.rest_dofs().to_vec(), v);
-        let mut plane_contacts = 0;
-        for _ in 0..60 {
-            let r = integrator.step(&mesh).unwrap();
-            plane_contacts += r.contacts.planes + r.contacts.meshes;
-        }
-        let vx = integrator.velocities().iter().step_by(3).sum::<Real>() / (mesh.num_nodes() as Real);
-        assert!(plane_contacts > 0 && vx < 0.7, "the box must land and be slowed by friction: {plane_contacts}, {vx}");
-        integrator.positions().to_vec()
-    };
-    let (plane, mesh) = (run(false), run(true));
-    let difference = plane.iter().zip(&mesh).map(|(a, b)| (a - b).abs()).fold(0.0, Real::max);
-    let moved = plane.iter().zip(mesh.iter()).count();
-    println!("largest difference of node positions after 1 s: {difference:.2e} m ({moved} DOFs)");
-    assert!(difference < 1e-9, "{difference}");
 }
 
 /// Two square bars crossed at right angles, each turned 45° about its axis so that an edge of
