@@ -257,6 +257,11 @@ impl ContactSet {
 
     fn key(colliders: &Colliders<'_>, rest_dofs: &[Real]) -> (usize, usize, u64) {
         use std::hash::{Hash, Hasher};
+        // Without surface contact a set holds no structures ([`new`](Self::new) builds them
+        // for the surface only): any two are alike, and nothing is hashed.
+        if colliders.surface.is_none() {
+            return (0, 0, 0);
+        }
         let mut hasher = std::collections::hash_map::DefaultHasher::new();
         rest_dofs.iter().for_each(|x| x.to_bits().hash(&mut hasher));
         if let Some(points) = colliders.points {
@@ -276,6 +281,14 @@ impl ContactSet {
             colliders.surface.map_or(0, |s| s.triangles.len()),
             hasher.finish(),
         )
+    }
+
+    /// Forgets what steps left in the set (contacts, near pairs, lagged normal forces), keeping
+    /// the structures of its topology: a set handed to a new epoch starts as one just built.
+    pub fn forget_steps(&mut self) {
+        self.contacts.clear();
+        self.near.clear();
+        self.lagged.clear();
     }
 
     /// This step's active contacts (found by [`detect`](Self::detect), extended by

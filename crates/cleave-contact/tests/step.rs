@@ -194,7 +194,7 @@ fn boxes_thrown_at_each_other_conserve_momentum() {
         if conserve {
             assert!(worst_l < 1e-9, "angular momentum changed by {worst_l}");
         } else {
-            assert!(worst_l > 1e-6, "the plain step should change the angular momentum: {worst_l}");
+            assert!(worst_l > 1e-5, "the plain step should change the angular momentum: {worst_l}");
         }
     }
 }

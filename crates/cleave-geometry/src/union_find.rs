@@ -18,7 +18,7 @@ impl UnionFind {
 
     /// The smallest member of `i`'s set.
     pub fn find(&mut self, i: usize) -> usize {
-        let mut i = i as u32;
+        let mut i = u32::try_from(i).expect("an index of the sets");
         while self.parent[i as usize] != i {
             self.parent[i as usize] = self.parent[self.parent[i as usize] as usize];
             i = self.parent[i as usize];

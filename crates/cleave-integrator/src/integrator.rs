@@ -376,7 +376,10 @@ impl Integrator {
         self.work.preconditioner = vec![Matrix3::zeros(); discretization.num_nodes()];
         let previous = std::mem::take(&mut self.work.contacts);
         self.work.contacts = match prepared {
-            Some(prepared) => prepared,
+            Some(mut prepared) => {
+                prepared.forget_steps();
+                prepared
+            }
             None => ContactSet::new(&self.constraints.colliders(), discretization.rest_dofs()),
         };
         self.work.contacts.reuse_trees(previous);

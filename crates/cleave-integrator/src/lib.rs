@@ -19,8 +19,8 @@ mod two_level;
 // Contact is found by its own crate; its colliders and the structures of a topology are
 // re-exported so that a program that steps a body needs this crate only.
 pub use cleave_contact::{
-    ContactKind, ContactSet, ContactStats, FRICTION_SLIP_SPEED, MeshCollider, MeshColliderError, PlaneCollider,
-    SurfaceContact,
+    Colliders, ContactKind, ContactSet, ContactStats, FRICTION_SLIP_SPEED, MeshCollider, MeshColliderError,
+    PlaneCollider, SurfaceContact,
 };
 pub use constraints::{Constraints, PenaltyPins};
 pub use error::{StepError, StepErrorKind};

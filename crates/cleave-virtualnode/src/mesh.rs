@@ -185,7 +185,7 @@ pub enum MassLumping {
 /// Pieces smaller than this fraction of a lattice tetrahedron's volume are *specks*: under
 /// [`MassLumping::RowSum`] their duplicates are lumped uniformly (`ρ V / 4` per node), because
 /// row sums give a speck's far virtual nodes a vanishing share of its mass under its whole
-/// stiffness (docs/math/virtual-node.md §4, "Mass of small regions"). A speck's mass, volume and
+/// stiffness (docs/math/virtual-node.md §4, "Mass of specks"). A speck's mass, volume and
 /// momentum are its own either way; only how its mass sits on its nodes changes.
 pub const SPECK_VOLUME: Real = 1e-9;
 
@@ -751,6 +751,11 @@ impl VirtualNodeMesh {
     fn speck_duplicates(&self) -> Vec<bool> {
         let mut speck = vec![false; self.duplicates.len()];
         let limit = SPECK_VOLUME * self.lattice.h.powi(3) / 12.0;
+        // Every duplicate of a speck is smaller than the speck: without such a duplicate there
+        // is none, and the pieces need not be found.
+        if !self.duplicates.iter().any(|d| d.volume < limit) {
+            return speck;
+        }
         for piece in self.pieces().iter().filter(|p| p.volume < limit) {
             for &e in &piece.elements {
                 speck[e as usize] = true;

@@ -18,6 +18,7 @@ pub struct TetBoxes {
     tets: Vec<[u32; 4]>,
     dm_inv: Vec<Matrix3<Real>>,
     mass: Mass,
+    density: Real,
     blocks: BlockSet,
     /// Surface triangles over the nodes, outward, and the box each belongs to.
     pub triangles: Vec<[u32; 3]>,
@@ -114,7 +115,7 @@ impl TetBoxes {
         surface.sort_unstable();
         let triangles = surface.iter().map(|s| s.1).collect();
         let piece = surface.iter().map(|s| box_of_tet[s.0]).collect();
-        Self { rest, tets, dm_inv, mass: Mass::Lumped(masses), blocks, triangles, piece }
+        Self { rest, tets, dm_inv, mass: Mass::Lumped(masses), density: material.density, blocks, triangles, piece }
     }
 
     /// Every node as a contact point (an identity row).
@@ -171,13 +172,14 @@ impl Discretization for TetBoxes {
         &self.blocks
     }
 
-    /// Lumped: each node takes its mass's share of the density at its rest position.
+    /// Lumped: `∫ f N_k ≈ f(X_k) V_k`, with `V_k` the node's share of its tetrahedra's volume
+    /// (its mass over the density).
     fn add_load(&self, force_density: &dyn Fn(&Point3<Real>) -> Vector3<Real>, out: &mut [Real]) {
         let m = self.mass.diagonal();
         for (k, p) in self.rest.chunks_exact(3).enumerate() {
             let f = force_density(&Point3::new(p[0], p[1], p[2]));
             for a in 0..3 {
-                out[3 * k + a] += f[a] * m[3 * k + a];
+                out[3 * k + a] += f[a] * m[3 * k + a] / self.density;
             }
         }
     }
