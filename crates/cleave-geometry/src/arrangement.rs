@@ -806,6 +806,73 @@ impl Arrangement {
         Some(cell)
     }
 
+    /// Covers every open interior face that lies within the covered faces of other cells on
+    /// the same plane, facing it (its projected overlap with them is its whole area, up to
+    /// rounding), with their cover; returns how many it covered.
+    ///
+    /// Coverage belongs to the surface between two cells, but each cell keeps its own flag, and
+    /// the side-plane tests that set it run on each cell's own copies of the face's corners: a
+    /// corner on a side plane rounded to either side leaves one copy covered and the other open.
+    /// The cells are then two regions (`regions` joins only open pairs), and the open copy,
+    /// drawn by neither, left a hole in a piece's surface (a wavy sheet's flat part on an
+    /// interior lattice plane through the torus). Call before [`Self::regions`] after a cut.
+    pub fn close_coverage(&mut self) -> usize {
+        let mut groups: FastMap<u32, Vec<(usize, usize)>> = FastMap::default();
+        for (c, cell) in self.cells.iter().enumerate() {
+            for (f, face) in cell.faces.iter().enumerate() {
+                if face.plane >= 4 {
+                    groups.entry(face.plane).or_default().push((c, f));
+                }
+            }
+        }
+        let threshold = OVERLAP_TOLERANCE * self.scale2;
+        let mut scratch = (Vec::new(), Vec::new());
+        let mut covers: Vec<(usize, usize, Cover)> = Vec::new();
+        for (&plane, group) in &groups {
+            if !group.iter().any(|&(c, f)| self.cells[c].faces[f].cover != Cover::Open)
+                || !group.iter().any(|&(c, f)| self.cells[c].faces[f].cover == Cover::Open)
+            {
+                continue;
+            }
+            let axis = self.planes[plane as usize].axis as usize;
+            let projected = |c: usize, f: usize| -> Vec<Point2<f64>> {
+                self.cells[c].faces[f].verts.iter().map(|&v| project(&self.point(v), axis)).collect()
+            };
+            for &(c, f) in group {
+                let open = &self.cells[c].faces[f];
+                if open.cover != Cover::Open {
+                    continue;
+                }
+                let polygon = projected(c, f);
+                let area = convex_overlap_area(&polygon, &polygon, &mut scratch);
+                if area <= threshold {
+                    continue;
+                }
+                // The covered faces facing it belong to disjoint cells on one side: their
+                // overlaps with it add up.
+                let (mut covered, mut cover) = (0.0, Cover::Open);
+                for &(d, g) in group {
+                    let other = &self.cells[d].faces[g];
+                    if d == c || other.cover == Cover::Open || other.positive == open.positive {
+                        continue;
+                    }
+                    let overlap = convex_overlap_area(&polygon, &projected(d, g), &mut scratch);
+                    if overlap > threshold {
+                        covered += overlap;
+                        cover = other.cover;
+                    }
+                }
+                if covered >= area - threshold.max(1e-9 * area) {
+                    covers.push((c, f, cover));
+                }
+            }
+        }
+        for &(c, f, cover) in &covers {
+            self.cells[c].faces[f].cover = cover;
+        }
+        covers.len()
+    }
+
     /// Material regions: groups of cells connected through open faces, with positive volume.
     /// Returns `(cells of the region, volume)` per region.
     pub fn regions(&self) -> Vec<(Vec<usize>, f64)> {
@@ -1048,6 +1115,38 @@ mod tests {
         assert_eq!(a.regions().len(), 1, "one triangle alone leaves a bridge");
         a.cut(&[quad[0], quad[2], quad[3]], Cover::Cut);
         assert_eq!(a.regions().len(), 2);
+    }
+
+    #[test]
+    fn a_face_covered_on_one_side_only_is_covered_on_both() {
+        // Two coplanar triangles cover the section z = 0.25; one cell's copy of a covered face
+        // is opened, as a corner rounded to the other side of a side plane leaves it.
+        let mut a = unit_tet();
+        let z = 0.25;
+        let quad = [
+            Point3::new(-1.0, -1.0, z),
+            Point3::new(2.0, -1.0, z),
+            Point3::new(2.0, 2.0, z),
+            Point3::new(-1.0, 2.0, z),
+        ];
+        a.cut(&[quad[0], quad[1], quad[2]], Cover::Cut);
+        a.cut(&[quad[0], quad[2], quad[3]], Cover::Cut);
+        assert_eq!(a.close_coverage(), 0, "both sides already covered");
+        let (c, f) = (0..a.cells.len())
+            .flat_map(|c| (0..a.cells[c].faces.len()).map(move |f| (c, f)))
+            .find(|&(c, f)| a.cells[c].faces[f].cover == Cover::Cut && !a.cells[c].faces[f].positive)
+            .expect("a covered face below the section");
+        a.cells[c].faces[f].cover = Cover::Open;
+        assert_eq!(a.close_coverage(), 1);
+        assert_eq!(a.cells[c].faces[f].cover, Cover::Cut);
+        assert_eq!(a.regions().len(), 2);
+        // Open faces facing open faces (the bridge one triangle leaves) stay open.
+        let mut b = unit_tet();
+        b.cut(&[quad[0], quad[1], quad[2]], Cover::Cut);
+        let open_before = b.cells.iter().flat_map(|c| &c.faces).filter(|f| f.cover == Cover::Open).count();
+        assert_eq!(b.close_coverage(), 0);
+        assert_eq!(b.cells.iter().flat_map(|c| &c.faces).filter(|f| f.cover == Cover::Open).count(), open_before);
+        assert_eq!(b.regions().len(), 1);
     }
 
     #[test]

@@ -57,6 +57,11 @@ pub const SLIVER_TOLERANCE: Real = 1e-5;
 /// and near-coplanar source triangles put them up to ~1e-6 m apart at 15 mm cells.
 pub const JUNCTION_TOLERANCE: Real = 1e-3;
 
+/// Relative distance (of the lattice spacing) within which two consecutive points of a merged
+/// cut or surface polygon are copies of one point made in two cells (`merged_loop`): rounding
+/// puts such copies ~1e-9 h apart, far inside the sliver repair's [`SLIVER_TOLERANCE`].
+const NEAR_COPY: Real = 1e-8;
+
 /// Weights at or below this do not make a node one of a vertex's own when deciding whether two
 /// vertices nearer than the sliver tolerance may be merged (a point computed in two
 /// tetrahedra lands up to ~1e-7 outside the face they share).
@@ -327,17 +332,41 @@ fn merged_loop(cells: &Arrangement, faces: &[&Face], tolerance: Real) -> Option<
         }
     };
     // Convex, with the normal of the faces (Newell's normal of the loop). A vertex is dropped
-    // only where it lies within the welding tolerance of the chord of its neighbours and between
-    // them: anywhere else a neighbouring polygon's copy of it would be neither welded nor
-    // inserted into the merged edge, and the piece's surface would open there.
+    // only where it lies within the welding tolerance of the chord from the last corner kept to
+    // the next vertex, and between them: anywhere else a neighbouring polygon's copy of it would
+    // be neither welded nor inserted into the merged edge, and the piece's surface would open
+    // there. Judged against the last corner kept, not the previous vertex: two copies of one
+    // point from two cells (1e-11 m apart, beyond the welding tolerance) each lie on the chord
+    // through the other, and judged against each other both were dropped, cutting the corner
+    // between them off the polygon (a hole between the cut face and the surface it meets).
     let points: Vec<Point3<Real>> = chain.iter().map(|&v| cells.point(v)).collect();
     let m = points.len();
     // Relative to the first point: a small polygon far from the origin keeps its digits.
     let normal =
         (1..m - 1).fold(Vector3::zeros(), |s, i| s + (points[i] - points[0]).cross(&(points[i + 1] - points[0])));
+    // The scan starts at the point farthest from the vertex average, a corner of any convex
+    // polygon (a point inside an edge is never farthest, whatever the rounding: the lexicographic
+    // least point can be, on an edge along an axis). Copies nearer than `NEAR_COPY` lattice spacings to the corner kept before them are the
+    // same point (dropped; the sliver repair joins the neighbours' copies to the one kept), and
+    // a corner's turn is taken towards the next point that is not its copy.
+    let near = NEAR_COPY / T_JUNCTION_TOLERANCE * tolerance;
+    let average = points.iter().fold(Vector3::zeros(), |s, p| s + (p - points[0])) / m as Real;
+    let start = (0..m)
+        .max_by(|&i, &j| {
+            ((points[i] - points[0]) - average)
+                .norm_squared()
+                .total_cmp(&((points[j] - points[0]) - average).norm_squared())
+        })
+        .expect("a loop has points");
     let mut corners = Vec::with_capacity(m);
-    for i in 0..m {
-        let (a, b, c) = (points[(i + m - 1) % m], points[i], points[(i + 1) % m]);
+    corners.push(start);
+    for step in 1..m {
+        let i = (start + step) % m;
+        let (a, b) = (points[*corners.last().expect("the start is kept")], points[i]);
+        if (b - a).norm() <= near {
+            continue;
+        }
+        let c = (1..=m - step).map(|k| points[(i + k) % m]).find(|c| (c - b).norm() > near).unwrap_or(points[start]);
         let (e1, e2, chord) = (b - a, c - b, c - a);
         let turn = e1.cross(&e2);
         let off_chord = turn.norm() / chord.norm().max(Real::MIN_POSITIVE);
@@ -347,9 +376,24 @@ fn merged_loop(cells: &Arrangement, faces: &[&Face], tolerance: Real) -> Option<
         if turn.dot(&normal) <= 1e-9 * e1.norm() * e2.norm() * normal.norm() {
             return None;
         }
-        corners.push(chain[i]);
+        corners.push(i);
     }
-    (corners.len() >= 3).then_some(corners)
+    // The start's own turn, between the last corner kept and the first after it.
+    while corners.len() > 1 && (points[*corners.last().expect("non-empty")] - points[start]).norm() <= near {
+        corners.pop();
+    }
+    if corners.len() < 3 {
+        return None;
+    }
+    let (a, b, c) = (points[corners[corners.len() - 1]], points[start], points[corners[1]]);
+    let (e1, e2) = (b - a, c - b);
+    if e1.cross(&e2).dot(&normal) <= 1e-9 * e1.norm() * e2.norm() * normal.norm() {
+        return None;
+    }
+    // In the loop's own order from its first point: the fan (and so the contact surface) does
+    // not depend on where the scan started.
+    corners.sort_unstable();
+    Some(corners.into_iter().map(|i| chain[i]).collect())
 }
 
 /// The directed `edges` (sorted in place) without those met once in each direction, if what
