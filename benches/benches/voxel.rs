@@ -1,10 +1,11 @@
 //! Voxel benches: the warped stiffness action (voxels per second and fraction of FP64 peak), one
 //! implicit step of the bunny drop with each solver, and cantilever assembly + factorization.
 //!
-//! FP64 peak assumed: 2 cores × 3.0 GHz × 16 flop/cycle (AVX2: two 256-bit FMA ports, 4 doubles
-//! each, 2 flops per FMA) = 96 GFLOP/s. The build targets baseline x86-64 (SSE2, no FMA), whose
-//! peak is 4× lower, 24 GFLOP/s. A cube costs 2·576 (the 24×24 product) + 2·2·8·9 (rotating 8
-//! corners in and out) = 1440 flops; `results/voxel-bench.md` turns voxels/s into both fractions.
+//! The build targets baseline x86-64 (SSE2); the cube's 24×24 product picks AVX2+FMA at run time
+//! (`pulp`). FP64 peak per core: 16 flop/cycle with AVX2+FMA (two 256-bit FMA ports, 4 doubles
+//! each, 2 flops per FMA), 32 with AVX-512. A cube costs 2·576 (the 24×24 product) + 2·2·8·9
+//! (rotating 8 corners in and out) = 1440 flops; `results/voxel-bench.md` turns voxels/s into
+//! fractions of the machine's peaks.
 
 use cleave_benches::bunny_voxels;
 use cleave_core::{Discretization, Matrix3, Point3, Real, Vector3};

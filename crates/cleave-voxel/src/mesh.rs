@@ -446,6 +446,10 @@ impl VoxelMesh {
         out: &mut [Real],
     ) {
         let k = &*self.stiffness;
+        // The 24 × 24 product in the widest vector instructions the processor has, chosen at
+        // run time: the release build targets baseline x86-64 (SSE2), and AVX2 doubles the
+        // action's speed on the voxel bunny (docs/results/voxel-bench.md, "Run-time SIMD").
+        let arch = pulp::Arch::new();
         self.blocks.scatter_plan().scatter_add(out, |cube, buf, base| {
             let nodes = &self.cube_nodes[cube];
             let r = &rotations[cube];
@@ -473,13 +477,7 @@ impl VoxelMesh {
             }
             // y = K local as a sum of columns (K is symmetric, so column `col` is row `col`):
             // 24-wide axpys vectorize without reassociating a dot product's sum.
-            let mut y = [0.0; 24];
-            for (col, &l) in local.iter().enumerate() {
-                let k_col: &[Real; 24] = k[24 * col..24 * col + 24].try_into().expect("24 entries");
-                for (y, &k) in y.iter_mut().zip(k_col) {
-                    *y += k * l;
-                }
-            }
+            let y = arch.dispatch(CubeProduct { k, local: &local });
             for (c, &n) in nodes.iter().enumerate() {
                 let i = 3 * n as usize - base;
                 let (q0, q1, q2) = (y[3 * c], y[3 * c + 1], y[3 * c + 2]);
@@ -488,6 +486,32 @@ impl VoxelMesh {
                 }
             }
         });
+    }
+}
+
+/// `K l` for the symmetric 24 × 24 cube matrix `K`, as a sum of its columns (column `col` is row
+/// `col`): 24-wide multiply-adds that vectorize without reassociating a dot product's sum, so
+/// every instruction set gives the same bits. Compiled once per instruction set `pulp` knows
+/// and chosen at run time (`pulp::Arch::dispatch` inlines it into a function built for AVX2+FMA
+/// where the processor has them).
+struct CubeProduct<'a> {
+    k: &'a [Real; 576],
+    local: &'a [Real; 24],
+}
+
+impl pulp::WithSimd for CubeProduct<'_> {
+    type Output = [Real; 24];
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) -> [Real; 24] {
+        let mut y = [0.0; 24];
+        for (col, &l) in self.local.iter().enumerate() {
+            let k_col: &[Real; 24] = self.k[24 * col..24 * col + 24].try_into().expect("24 entries");
+            for (y, &k) in y.iter_mut().zip(k_col) {
+                *y += k * l;
+            }
+        }
+        y
     }
 }
 
@@ -643,5 +667,28 @@ mod boundary_tests {
         assert_eq!(surface.triangles.len(), 28);
         surface.validate_closed().unwrap();
         assert!((surface.signed_volume() - 3.0 * 0.125).abs() < 1e-12, "{}", surface.signed_volume());
+    }
+}
+
+#[cfg(test)]
+mod simd_tests {
+    use super::*;
+    use pulp::WithSimd;
+
+    #[test]
+    fn the_dispatched_cube_product_gives_the_scalar_bits() {
+        // Whatever instruction set the processor offers, the product adds the same columns in
+        // the same order without fusing: bit for bit the baseline's result.
+        let material = Material::new(2.7e5, 0.31, 1000.0).unwrap();
+        let k = crate::stiffness::cube_stiffness(&material, 0.013);
+        for seed in 0..20 {
+            let local: [Real; 24] = std::array::from_fn(|i| ((i * 7919 + seed * 104_729) as Real * 0.618).sin() * 1e-3);
+            let scalar = CubeProduct { k: &k, local: &local }.with_simd(pulp::Scalar::new());
+            let dispatched = pulp::Arch::new().dispatch(CubeProduct { k: &k, local: &local });
+            assert_eq!(scalar.map(Real::to_bits), dispatched.map(Real::to_bits));
+            // And it is K l: row 3 by a plain dot product, within rounding.
+            let row: Real = (0..24).map(|j| k[24 * 3 + j] * local[j]).sum();
+            assert!((row - scalar[3]).abs() <= 1e-12 * k.iter().map(|v| v.abs()).fold(0.0, Real::max) * 1e-3 * 24.0);
+        }
     }
 }
