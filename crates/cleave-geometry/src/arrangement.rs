@@ -31,7 +31,7 @@
 use crate::FastMap;
 use crate::UnionFind;
 use crate::predicates::{
-    convex_overlap_area, dominant_axis, largest_component, project, side3, triangle_is_degenerate,
+    convex_overlap_area, dominant_axis, largest_component, polygon_area_2d, project, side3, triangle_is_degenerate,
 };
 use nalgebra::{Point2, Point3, Vector3};
 
@@ -844,25 +844,33 @@ impl Arrangement {
                     continue;
                 }
                 let polygon = projected(c, f);
-                let area = convex_overlap_area(&polygon, &polygon, &mut scratch);
+                let area = polygon_area_2d(&polygon).abs();
                 if area <= threshold {
                     continue;
                 }
                 // The covered faces facing it belong to disjoint cells on one side: their
-                // overlaps with it add up.
-                let (mut covered, mut cover) = (0.0, Cover::Open);
+                // overlaps with it add up. Any open face facing it beyond the threshold
+                // `regions` joins through keeps it open.
+                let (mut covered, mut cover, mut joined) = (0.0, Cover::Open, false);
                 for &(d, g) in group {
                     let other = &self.cells[d].faces[g];
-                    if d == c || other.cover == Cover::Open || other.positive == open.positive {
+                    if d == c || other.positive == open.positive {
                         continue;
                     }
                     let overlap = convex_overlap_area(&polygon, &projected(d, g), &mut scratch);
-                    if overlap > threshold {
-                        covered += overlap;
+                    if overlap <= threshold {
+                        continue;
+                    }
+                    if other.cover == Cover::Open {
+                        joined = true;
+                        break;
+                    }
+                    covered += overlap;
+                    if cover == Cover::Open {
                         cover = other.cover;
                     }
                 }
-                if covered >= area - threshold.max(1e-9 * area) {
+                if !joined && covered >= area - threshold.max(1e-9 * area) {
                     covers.push((c, f, cover));
                 }
             }
@@ -1140,13 +1148,39 @@ mod tests {
         assert_eq!(a.close_coverage(), 1);
         assert_eq!(a.cells[c].faces[f].cover, Cover::Cut);
         assert_eq!(a.regions().len(), 2);
-        // Open faces facing open faces (the bridge one triangle leaves) stay open.
+        // Of the four faces on a section split in two by x = 0.2, one beyond x = 0.2 stays
+        // covered and the other three are opened: only the face facing the covered one is
+        // covered again; the open pair facing each other stays open and joins its cells.
         let mut b = unit_tet();
-        b.cut(&[quad[0], quad[1], quad[2]], Cover::Cut);
-        let open_before = b.cells.iter().flat_map(|c| &c.faces).filter(|f| f.cover == Cover::Open).count();
-        assert_eq!(b.close_coverage(), 0);
-        assert_eq!(b.cells.iter().flat_map(|c| &c.faces).filter(|f| f.cover == Cover::Open).count(), open_before);
-        assert_eq!(b.regions().len(), 1);
+        let section = |b: &Arrangement| -> Vec<(usize, usize)> {
+            (0..b.cells.len())
+                .flat_map(|c| (0..b.cells[c].faces.len()).map(move |f| (c, f)))
+                .filter(|&(c, f)| b.face_on(&b.cells[c].faces[f], 4))
+                .collect()
+        };
+        b.cut_plane(&[quad[0], quad[1], quad[2]], Cover::Cut);
+        b.cut_plane(&[Point3::new(0.2, 0.0, 0.0), Point3::new(0.2, 1.0, 0.0), Point3::new(0.2, 0.0, 1.0)], Cover::Open);
+        let faces = section(&b);
+        assert_eq!(faces.len(), 4, "two faces below the section, two above");
+        let centre_x = |b: &Arrangement, (c, f): (usize, usize)| {
+            let verts = &b.cells[c].faces[f].verts;
+            verts.iter().map(|&v| b.point(v).x).sum::<f64>() / verts.len() as f64
+        };
+        let kept = *faces
+            .iter()
+            .find(|&&(c, f)| b.cells[c].faces[f].positive && centre_x(&b, (c, f)) > 0.2)
+            .expect("a face beyond x = 0.2");
+        for &(c, f) in &faces {
+            if (c, f) != kept {
+                b.cells[c].faces[f].cover = Cover::Open;
+            }
+        }
+        assert_eq!(b.close_coverage(), 1);
+        let covered: Vec<(usize, usize)> =
+            faces.iter().copied().filter(|&(c, f)| b.cells[c].faces[f].cover == Cover::Cut).collect();
+        assert_eq!(covered.len(), 2);
+        assert!(covered.iter().all(|&face| centre_x(&b, face) > 0.2), "only beyond x = 0.2");
+        assert_eq!(b.regions().len(), 1, "joined through the open pair");
     }
 
     #[test]

@@ -345,10 +345,11 @@ fn merged_loop(cells: &Arrangement, faces: &[&Face], tolerance: Real) -> Option<
     let normal =
         (1..m - 1).fold(Vector3::zeros(), |s, i| s + (points[i] - points[0]).cross(&(points[i + 1] - points[0])));
     // The scan starts at the point farthest from the vertex average, a corner of any convex
-    // polygon (a point inside an edge is never farthest, whatever the rounding: the lexicographic
-    // least point can be, on an edge along an axis). Copies nearer than `NEAR_COPY` lattice spacings to the corner kept before them are the
-    // same point (dropped; the sliver repair joins the neighbours' copies to the one kept), and
-    // a corner's turn is taken towards the next point that is not its copy.
+    // polygon (a point inside an edge is never farthest, whatever the rounding: the
+    // lexicographic least point can be, on an edge along an axis). Copies nearer than
+    // `NEAR_COPY` lattice spacings to the corner kept before them are the same point (dropped;
+    // the sliver repair joins the neighbours' copies to the one kept), and a corner's turn is
+    // taken towards the next point that is not its copy.
     let near = NEAR_COPY / T_JUNCTION_TOLERANCE * tolerance;
     let average = points.iter().fold(Vector3::zeros(), |s, p| s + (p - points[0])) / m as Real;
     let start = (0..m)
@@ -366,7 +367,10 @@ fn merged_loop(cells: &Arrangement, faces: &[&Face], tolerance: Real) -> Option<
         if (b - a).norm() <= near {
             continue;
         }
-        let c = (1..=m - step).map(|k| points[(i + k) % m]).find(|c| (c - b).norm() > near).unwrap_or(points[start]);
+        // Every point from here to the start a copy of this one: it is a copy of the start.
+        let Some(c) = (1..=m - step).map(|k| points[(i + k) % m]).find(|c| (c - b).norm() > near) else {
+            continue;
+        };
         let (e1, e2, chord) = (b - a, c - b, c - a);
         let turn = e1.cross(&e2);
         let off_chord = turn.norm() / chord.norm().max(Real::MIN_POSITIVE);

@@ -2,8 +2,9 @@
 //! tilted 20° coming straight down and by oblique planes, the cuts of `scenes/torus_blades.ron`
 //! (two blades, a wavy sheet, an oblique plane), and a block cut by an oblique plane and a wavy
 //! soup that passes within 4e-7 m of a lattice plane. Welded by rest position at 1e-12 m, every
-//! piece's surface has no sliver (no edge shorter than, and no corner nearer its opposite edge
-//! than, 1e-5 of the lattice spacing) and every edge in exactly two triangles.
+//! piece's surface has every edge in exactly two triangles and no sliver (no edge shorter than,
+//! and no corner nearer its opposite edge than, 1e-5 of the lattice spacing), but for one cap
+//! the repair cannot flip after the scene's wavy sheet (counted below).
 //! With the old T-junction tolerance (1e-10 h) the carved torus alone has 14 slivers; without
 //! the sliver repair the wavy soup leaves 4. Before the merged cut face kept the corner where a
 //! cut crosses an edge between two source triangles, the oblique planes left 12 open edges;
