@@ -1109,16 +1109,16 @@ mod tests {
         assert!((b.volume() - 1.0 / 6.0).abs() < 1e-15);
     }
 
+    /// A square in the plane z = `z` larger than the unit tetrahedron's section, corners
+    /// counter-clockwise seen from above.
+    fn section_quad(z: f64) -> [Point3<f64>; 4] {
+        [Point3::new(-1.0, -1.0, z), Point3::new(2.0, -1.0, z), Point3::new(2.0, 2.0, z), Point3::new(-1.0, 2.0, z)]
+    }
+
     #[test]
     fn two_coplanar_triangles_that_together_cover_a_section_separate() {
         let mut a = unit_tet();
-        let z = 0.25;
-        let quad = [
-            Point3::new(-1.0, -1.0, z),
-            Point3::new(2.0, -1.0, z),
-            Point3::new(2.0, 2.0, z),
-            Point3::new(-1.0, 2.0, z),
-        ];
+        let quad = section_quad(0.25);
         a.cut(&[quad[0], quad[1], quad[2]], Cover::Cut);
         assert_eq!(a.regions().len(), 1, "one triangle alone leaves a bridge");
         a.cut(&[quad[0], quad[2], quad[3]], Cover::Cut);
@@ -1130,13 +1130,7 @@ mod tests {
         // Two coplanar triangles cover the section z = 0.25; one cell's copy of a covered face
         // is opened, as a corner rounded to the other side of a side plane leaves it.
         let mut a = unit_tet();
-        let z = 0.25;
-        let quad = [
-            Point3::new(-1.0, -1.0, z),
-            Point3::new(2.0, -1.0, z),
-            Point3::new(2.0, 2.0, z),
-            Point3::new(-1.0, 2.0, z),
-        ];
+        let quad = section_quad(0.25);
         a.cut(&[quad[0], quad[1], quad[2]], Cover::Cut);
         a.cut(&[quad[0], quad[2], quad[3]], Cover::Cut);
         assert_eq!(a.close_coverage(), 0, "both sides already covered");
