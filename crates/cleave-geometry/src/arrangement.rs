@@ -815,7 +815,7 @@ impl Arrangement {
     /// corner on a side plane rounded to either side leaves one copy covered and the other open.
     /// The cells are then two regions (`regions` joins only open pairs), and the open copy,
     /// drawn by neither, left a hole in a piece's surface (a wavy sheet's flat part on an
-    /// interior lattice plane through the torus). Call before [`Self::regions`] after a cut.
+    /// interior lattice plane through the torus). [`Self::regions`] calls it first.
     pub fn close_coverage(&mut self) -> usize {
         let mut groups: FastMap<u32, Vec<(usize, usize)>> = FastMap::default();
         for (c, cell) in self.cells.iter().enumerate() {
@@ -881,9 +881,17 @@ impl Arrangement {
         covers.len()
     }
 
-    /// Material regions: groups of cells connected through open faces, with positive volume.
-    /// Returns `(cells of the region, volume)` per region.
-    pub fn regions(&self) -> Vec<(Vec<usize>, f64)> {
+    /// Material regions: groups of cells connected through open faces, with positive volume,
+    /// after coverage is made the same on both sides of every face ([`Self::close_coverage`]:
+    /// every caller after a cut needs it, so it is not left to them). Returns `(cells of the
+    /// region, volume)` per region.
+    pub fn regions(&mut self) -> Vec<(Vec<usize>, f64)> {
+        self.close_coverage();
+        self.connected_regions()
+    }
+
+    /// Groups of cells connected through open faces, as the flags stand.
+    fn connected_regions(&self) -> Vec<(Vec<usize>, f64)> {
         let n = self.cells.len();
         let mut sets = UnionFind::new(n);
         // Open interior faces grouped by plane.
@@ -1083,7 +1091,7 @@ mod tests {
 
     #[test]
     fn uncut_tetrahedron_has_its_volume_and_one_region() {
-        let a = unit_tet();
+        let mut a = unit_tet();
         assert!((a.volume() - 1.0 / 6.0).abs() < 1e-16);
         assert_eq!(a.regions().len(), 1);
     }

@@ -346,7 +346,6 @@ impl VirtualNodeMesh {
                 for &t in tris {
                     arrangement.cut(&triangles[t as usize], Cover::Surface);
                 }
-                arrangement.close_coverage();
                 arrangement
                     .regions()
                     .into_iter()
@@ -1081,7 +1080,6 @@ impl VirtualNodeMesh {
                 if !changed {
                     return (*d, None);
                 }
-                cells.close_coverage();
                 let regions = cells.regions();
                 (*d, Some(regions.into_iter().map(|(c, v)| (cells.restricted(&c), v)).collect()))
             })

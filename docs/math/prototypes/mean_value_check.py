@@ -45,24 +45,22 @@ def cut_cube():
     N = np.vstack([np.eye(3), -np.eye(3), [1, 1, 1]]); return poly_from_planes(N, [1, 1, 1, 0, 0, 0, 2.4])
 
 
-def regular_tet():
-    P = np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]], float)
+def tet_from_points(P):
+    """The tetrahedron on corners P as outward half-spaces."""
     c = P.mean(0); N = []; b = []
     for f in itertools.combinations(range(4), 3):
         n = np.cross(P[f[1]] - P[f[0]], P[f[2]] - P[f[0]])
         if n @ (P[f[0]] - c) < 0: n = -n
         N.append(n); b.append(n @ P[f[0]])
     return poly_from_planes(N, b)
+
+
+def regular_tet():
+    return tet_from_points(np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]], float))
 
 
 def skew_tet():
-    P = np.array([[0, 0, 0], [2.0, 0.1, 0], [0.3, 1.5, 0.2], [0.4, 0.5, 1.7]])
-    c = P.mean(0); N = []; b = []
-    for f in itertools.combinations(range(4), 3):
-        n = np.cross(P[f[1]] - P[f[0]], P[f[2]] - P[f[0]])
-        if n @ (P[f[0]] - c) < 0: n = -n
-        N.append(n); b.append(n @ P[f[0]])
-    return poly_from_planes(N, b)
+    return tet_from_points(np.array([[0, 0, 0], [2.0, 0.1, 0], [0.3, 1.5, 0.2], [0.4, 0.5, 1.7]]))
 
 
 def diameter(V):
