@@ -11,7 +11,7 @@ use crate::plots;
 use anyhow::{Context, Result, bail};
 use cleave_registry::registered;
 use cleave_testkit::compare::{
-    CSV_HEADER, CUT_DYNAMIC_CUT_STEP, CUT_DYNAMIC_STEPS, CompareBackend, DYNAMIC_STEPS, KAUFMANN2008_TABLE1, Problem,
+    CSV_HEADER, CUT_DYNAMIC_CUT_STEP, CUT_DYNAMIC_STEPS, DYNAMIC_STEPS, KAUFMANN2008_TABLE1, Problem,
     Row, StudyObserver, StudyPlan, Table1Timings, TipReference, cantilever_reference, cut_cantilever_reference,
     observed_rates, parse_csv, run_study, self_consistency, table1_timings,
 };
@@ -38,6 +38,8 @@ pub struct CompareArgs {
     pub command: String,
     /// No progress bar.
     pub quiet: bool,
+    /// Run only this slice of the work list (its directory then holds only the slice).
+    pub shard: Option<Shard>,
 }
 
 /// What one invocation runs.
@@ -223,48 +225,163 @@ impl StudyObserver for Observer<'_> {
     }
 }
 
+/// One slice of the work list, `I/N` on the command line (1-based).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    /// This shard's index, 0-based.
+    pub index: usize,
+    /// The number of shards.
+    pub count: usize,
+}
+
+impl Shard {
+    /// Parses `I/N` with 1 ≤ I ≤ N.
+    pub fn parse(text: &str) -> Result<Self> {
+        let parsed = text.split_once('/').and_then(|(i, n)| Some((i.trim().parse::<usize>().ok()?, n.trim().parse::<usize>().ok()?)));
+        match parsed {
+            Some((i, n)) if n >= 1 && (1..=n).contains(&i) => Ok(Self { index: i - 1, count: n }),
+            _ => bail!("--shard expects I/N with 1 ≤ I ≤ N (for example 2/4), got {text:?}"),
+        }
+    }
+
+    /// Whether the `position`-th unit of the work list is this shard's (round robin, so every
+    /// shard gets a mix of cheap and costly studies).
+    fn takes(&self, position: usize) -> bool {
+        position % self.count == self.index
+    }
+}
+
+/// One unit of `compare`'s work list: what a shard takes or leaves.
+#[derive(Clone, Debug, PartialEq)]
+enum Unit {
+    /// A refinement study of one method on one problem.
+    Study { backend: usize, variant: String, problem: Problem },
+    /// One method's Table 1 timing.
+    Table1 { backend: usize, variant: String },
+    /// The cutting scene on one backend.
+    Cutting { backend: usize },
+}
+
+/// The whole work list of a selection, in a fixed order (studies by backend, variant and problem;
+/// Table 1 by method; cutting by backend): every shard of one invocation computes the same list.
+fn work_list(selection: &Selection, chosen: &[Box<dyn cleave_registry::Backend>]) -> Vec<Unit> {
+    let mut units = Vec::new();
+    for (b, backend) in chosen.iter().enumerate() {
+        for variant in backend.variants() {
+            for &problem in &selection.problems {
+                // The cut problems run only for methods that cut.
+                if !problem.needs_cutting() || backend.cuts(&variant) {
+                    units.push(Unit::Study { backend: b, variant: variant.clone(), problem });
+                }
+            }
+        }
+    }
+    if selection.table1 {
+        for (b, backend) in chosen.iter().enumerate() {
+            units.extend(backend.variants().into_iter().map(|variant| Unit::Table1 { backend: b, variant }));
+        }
+    }
+    if selection.cutting {
+        for (b, backend) in chosen.iter().enumerate() {
+            if backend.capabilities().cut {
+                units.push(Unit::Cutting { backend: b });
+            }
+        }
+    }
+    units
+}
+
+impl Unit {
+    /// A stable name for the unit (the fingerprint of a work list is made of them).
+    fn label(&self, chosen: &[Box<dyn cleave_registry::Backend>]) -> String {
+        match self {
+            Unit::Study { backend, variant, problem } => format!("study {}/{variant} {}", chosen[*backend].name(), problem.key()),
+            Unit::Table1 { backend, variant } => format!("table1 {}/{variant}", chosen[*backend].name()),
+            Unit::Cutting { backend } => format!("cutting {}", chosen[*backend].name()),
+        }
+    }
+}
+
+/// FNV-1a of the work list's labels and the level plan: shards of one split agree on it, so a
+/// merge can refuse shards that were run with different selections.
+fn fingerprint(labels: &[String], quick: bool, budget: f64) -> String {
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    let text = format!("{}|quick={quick}|budget={budget}", labels.join(";"));
+    for byte in text.bytes() {
+        hash ^= u64::from(byte);
+        hash = hash.wrapping_mul(0x0100_0000_01b3);
+    }
+    format!("{hash:016x}")
+}
+
+/// The file a shard writes beside its rows, read back by `--merge`.
+const SHARD_FILE: &str = "shard.txt";
+
+/// Where the rows of a report came from: the machine and the command(s).
+struct Provenance {
+    /// The machine line(s).
+    machine: String,
+    /// The command as typed, in Markdown code spans (and the shards' commands for a merge).
+    command: String,
+    /// What the cut cantilever section says about the load its timings ran under.
+    cut_load: String,
+}
+
 /// Runs `cargo xtask compare`.
 pub fn compare(args: CompareArgs) -> Result<()> {
     let selection = selection(&args.problems)?;
-    let problems = selection.problems.clone();
     let chosen = selected_backends(&args.backends)?;
     fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    let csv_path = args.out.join("compare.csv");
-    let methods: Vec<(String, String)> =
-        chosen.iter().flat_map(|b| b.variants().into_iter().map(|v| (b.name().to_string(), v))).collect();
-    // The cut problems run only for methods that cut.
-    let runs = |problem: Problem, backend: &dyn CompareBackend, variant: &str| {
-        !problem.needs_cutting() || backend.cuts(variant)
-    };
+    let all_units = work_list(&selection, &chosen);
+    let labels: Vec<String> = all_units.iter().map(|u| u.label(&chosen)).collect();
+    let units: Vec<Unit> = all_units
+        .into_iter()
+        .enumerate()
+        .filter(|(i, _)| args.shard.is_none_or(|s| s.takes(*i)))
+        .map(|(_, u)| u)
+        .collect();
+    let method_of = |b: usize, v: &str| (chosen[b].name().to_string(), v.to_string());
+    let studied: Vec<(String, String, &'static str)> = units
+        .iter()
+        .filter_map(|u| match u {
+            Unit::Study { backend, variant, problem } => {
+                let (b, v) = method_of(*backend, variant);
+                Some((b, v, problem.key()))
+            }
+            _ => None,
+        })
+        .collect();
+    // A shard's directory holds its own slice only; otherwise what is not redone is kept.
+    let sharded = args.shard.is_some();
     let redo = |r: &Row| {
-        problems.iter().any(|p| p.key() == r.problem) && methods.iter().any(|(b, v)| *b == r.backend && *v == r.variant)
+        sharded || studied.iter().any(|(b, v, p)| *b == r.backend && *v == r.variant && *p == r.problem)
     };
+    let csv_path = args.out.join("compare.csv");
     let (mut csv, kept) = CsvAppender::open(&csv_path, &redo)?;
     let md_path = args.out.join("compare.md");
-    let mut stops: Vec<String> = previous_stops(&md_path)
+    let mut stops: Vec<String> = if sharded { Vec::new() } else { previous_stops(&md_path) }
         .into_iter()
-        .filter(|(method, problem, _)| {
-            !(problems.iter().any(|p| p.key() == problem) && methods.iter().any(|(b, v)| *method == format!("{b}/{v}")))
-        })
+        .filter(|(method, problem, _)| !studied.iter().any(|(b, v, p)| *method == format!("{b}/{v}") && p == problem))
         .map(|(_, _, line)| line)
         .collect();
 
-    let studies = chosen
-        .iter()
-        .flat_map(|b| b.variants().into_iter().map(move |v| (b, v)))
-        .map(|(b, v)| problems.iter().filter(|&&p| runs(p, b.as_ref(), &v)).count())
-        .sum::<usize>() as u64;
-    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(studies) };
+    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(units.len() as u64) };
     bar.set_style(
-        ProgressStyle::with_template("{bar:30.cyan/blue} {pos}/{len} studies  {elapsed_precise}  {msg}")
+        ProgressStyle::with_template("{bar:30.cyan/blue} {pos}/{len} units  {elapsed_precise}  {msg}")
             .expect("static template")
             .progress_chars("=> "),
     );
+    let table1_path = args.out.join("table1.csv");
+    let cutting_path = args.out.join("cutting.csv");
     let mut rows = kept;
-    for backend in &chosen {
-        for variant in backend.variants() {
-            for &problem in problems.iter().filter(|&&p| runs(p, backend.as_ref(), &variant)) {
-                let plan = if args.quick { StudyPlan::quick(problem) } else { StudyPlan::full(args.budget) };
+    let mut table1: Vec<Table1Row> = if sharded { Vec::new() } else { read_table1(&table1_path) };
+    let mut cut_rows: Vec<CutRow> = if sharded { Vec::new() } else { cutting::read_rows(&cutting_path) };
+    let mut cut_errors = Vec::new();
+    for unit in &units {
+        match unit {
+            Unit::Study { backend, variant, problem } => {
+                let backend = &chosen[*backend];
+                let plan = if args.quick { StudyPlan::quick(*problem) } else { StudyPlan::full(args.budget) };
                 let label = format!("{}/{variant}", backend.name());
                 let mut observer = Observer {
                     csv: &mut csv,
@@ -273,7 +390,7 @@ pub fn compare(args: CompareArgs) -> Result<()> {
                     label: label.clone(),
                     write_error: None,
                 };
-                let outcome = run_study(backend.as_ref(), &variant, problem, &plan, &mut observer);
+                let outcome = run_study(backend.as_ref(), variant, *problem, &plan, &mut observer);
                 if let Some(e) = observer.write_error {
                     return Err(e).with_context(|| format!("appending to {}", csv_path.display()));
                 }
@@ -284,61 +401,195 @@ pub fn compare(args: CompareArgs) -> Result<()> {
                     outcome.stop_reason
                 ));
                 rows.extend(outcome.rows);
-                bar.inc(1);
             }
-        }
-    }
-    let table1_path = args.out.join("table1.csv");
-    let mut table1: Vec<Table1Row> = read_table1(&table1_path);
-    if selection.table1 {
-        bar.set_message("Table 1 timings");
-        table1.retain(|(b, v, _)| !methods.iter().any(|(mb, mv)| mb == b && mv == v));
-        for backend in &chosen {
-            for variant in backend.variants() {
-                let timing = table1_timings(backend.as_ref(), &variant, 3);
-                table1.push((backend.name().to_string(), variant, timing.map_err(|e| e.to_string())));
+            Unit::Table1 { backend, variant } => {
+                let backend = &chosen[*backend];
+                bar.set_message(format!("Table 1 timings of {}/{variant}", backend.name()));
+                table1.retain(|(b, v, _)| !(b == backend.name() && v == variant));
+                let timing = table1_timings(backend.as_ref(), variant, 3);
+                table1.push((backend.name().to_string(), variant.clone(), timing.map_err(|e| e.to_string())));
+                write_table1(&table1_path, &table1)?;
             }
-        }
-        let text: String = std::iter::once(TABLE1_HEADER.to_string())
-            .chain(table1.iter().map(table1_to_csv))
-            .collect::<Vec<_>>()
-            .join("\n");
-        fs::write(&table1_path, text + "\n").with_context(|| format!("writing {}", table1_path.display()))?;
-    }
-
-    let cutting_path = args.out.join("cutting.csv");
-    let mut cut_rows: Vec<CutRow> = cutting::read_rows(&cutting_path);
-    let mut cut_errors = Vec::new();
-    let registered = cleave_registry::registered();
-    if selection.cutting {
-        for backend in &chosen {
-            let can_cut = registered.iter().any(|r| r.name() == backend.name() && r.capabilities().cut);
-            if !can_cut {
-                continue;
-            }
-            bar.set_message(format!("cutting {} on {}", cutting::SCENE, backend.name()));
-            cut_rows.retain(|r| r.backend != backend.name());
-            match cutting::run(backend.name()) {
-                Ok(row) => cut_rows.push(row),
-                Err(e) => {
-                    let chain: Vec<String> = e.chain().map(ToString::to_string).collect();
-                    cut_errors.push((backend.name().to_string(), chain.join(": ")));
+            Unit::Cutting { backend } => {
+                let name = chosen[*backend].name();
+                bar.set_message(format!("cutting {} on {name}", cutting::SCENE));
+                cut_rows.retain(|r| r.backend != name);
+                match cutting::run(name) {
+                    Ok(row) => cut_rows.push(row),
+                    Err(e) => {
+                        let chain: Vec<String> = e.chain().map(ToString::to_string).collect();
+                        cut_errors.push((name.to_string(), chain.join(": ")));
+                    }
                 }
+                cutting::write_rows(&cutting_path, &cut_rows)?;
             }
         }
-        cutting::write_rows(&cutting_path, &cut_rows)?;
+        bar.inc(1);
     }
     bar.finish_and_clear();
+    if sharded {
+        // Empty files for what this shard did not take, so a merge reads every shard alike.
+        write_table1(&table1_path, &table1)?;
+        cutting::write_rows(&cutting_path, &cut_rows)?;
+    }
+    let ran_cut = studied.iter().any(|(_, _, p)| *p == Problem::CutCantilever.key());
+    let provenance = Provenance {
+        machine: machine_line(),
+        command: format!("`{}`", args.command),
+        cut_load: if ran_cut {
+            crate::machine::load_line()
+        } else {
+            "These rows are from an earlier invocation than the command above.".to_string()
+        },
+    };
+    if let Some(shard) = args.shard {
+        let manifest = format!(
+            "shard {}/{}\n{}\n{}\nwork list {} ({} units)\n",
+            shard.index + 1,
+            shard.count,
+            provenance.machine,
+            args.command,
+            fingerprint(&labels, args.quick, args.budget),
+            labels.len()
+        );
+        let path = args.out.join(SHARD_FILE);
+        fs::write(&path, manifest).with_context(|| format!("writing {}", path.display()))?;
+    }
+    write_report(&args, &provenance, &rows, &stops, &table1, &cut_rows, &cut_errors)
+}
+
+/// `cargo xtask compare --merge DIR…`: the report and plots of many shards' rows. Refuses shards
+/// of different splits, a missing or repeated shard, and rows that two shards both hold.
+pub fn merge(args: CompareArgs, dirs: &[PathBuf]) -> Result<()> {
+    let mut rows: Vec<Row> = Vec::new();
+    let mut stops = Vec::new();
+    let mut table1: Vec<Table1Row> = Vec::new();
+    let mut cut_rows: Vec<CutRow> = Vec::new();
+    let mut machines: Vec<String> = Vec::new();
+    let mut commands = Vec::new();
+    let mut seen: Vec<(Shard, &Path)> = Vec::new();
+    let mut owner: Vec<(String, &Path)> = Vec::new();
+    let mut work_list_line: Option<(String, String)> = None;
+    for dir in dirs {
+        let manifest_path = dir.join(SHARD_FILE);
+        let manifest = fs::read_to_string(&manifest_path)
+            .with_context(|| format!("{} is not a shard's output ({} is missing)", dir.display(), SHARD_FILE))?;
+        let mut lines = manifest.lines();
+        let shard = lines
+            .next()
+            .and_then(|l| l.strip_prefix("shard "))
+            .map(Shard::parse)
+            .transpose()?
+            .with_context(|| format!("{}: the first line should be \"shard I/N\"", manifest_path.display()))?;
+        if let Some((other, other_dir)) = seen.iter().find(|(s, _)| s.count != shard.count || s.index == shard.index) {
+            bail!(
+                "{} is shard {}/{} and {} is shard {}/{}: a merge takes each shard of one split once",
+                other_dir.display(),
+                other.index + 1,
+                other.count,
+                dir.display(),
+                shard.index + 1,
+                shard.count
+            );
+        }
+        seen.push((shard, dir));
+        let machine = lines.next().unwrap_or_default().to_string();
+        if !machines.contains(&machine) {
+            machines.push(machine);
+        }
+        let command = lines.next().unwrap_or_default();
+        commands.push(format!("`{command}`"));
+        let list = lines.next().unwrap_or_default().to_string();
+        match &work_list_line {
+            None => work_list_line = Some((list, command.to_string())),
+            Some((first, first_command)) if *first != list => bail!(
+                "{} was run with another selection than the first shard ({first_command:?} against {command:?}): \
+                 every shard of a split must be given the same --problem, --backend, --quick and --budget",
+                dir.display()
+            ),
+            Some(_) => {}
+        }
+
+        let csv_path = dir.join("compare.csv");
+        let text = fs::read_to_string(&csv_path).with_context(|| format!("reading {}", csv_path.display()))?;
+        let shard_rows = parse_csv(&text).map_err(|e| anyhow::anyhow!("{}: {e}", csv_path.display()))?;
+        let mut claim = |key: String| -> Result<()> {
+            if let Some((_, first)) = owner.iter().find(|(k, _)| *k == key) {
+                bail!("{key} is in both {} and {}: the shards overlap", first.display(), dir.display());
+            }
+            owner.push((key, dir));
+            Ok(())
+        };
+        let mut studies: Vec<String> = shard_rows.iter().map(|r| format!("study {} {}", r.method(), r.problem)).collect();
+        studies.dedup();
+        for key in studies {
+            claim(key)?;
+        }
+        let shard_table1 = read_table1(&dir.join("table1.csv"));
+        for (b, v, _) in &shard_table1 {
+            claim(format!("Table 1 of {b}/{v}"))?;
+        }
+        let shard_cuts = cutting::read_rows(&dir.join("cutting.csv"));
+        for r in &shard_cuts {
+            claim(format!("the cutting scene on {}", r.backend))?;
+        }
+        rows.extend(shard_rows);
+        table1.extend(shard_table1);
+        cut_rows.extend(shard_cuts);
+        stops.extend(previous_stops(&dir.join("compare.md")).into_iter().map(|(_, _, line)| line));
+    }
+    let count = seen.first().map_or(0, |(s, _)| s.count);
+    if seen.len() != count {
+        let missing: Vec<String> =
+            (1..=count).filter(|i| !seen.iter().any(|(s, _)| s.index + 1 == *i)).map(|i| format!("{i}/{count}")).collect();
+        bail!("the merge lacks shard(s) {} of the split", missing.join(", "));
+    }
+    fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let csv_path = args.out.join("compare.csv");
+    let text: String = std::iter::once(CSV_HEADER.to_string()).chain(rows.iter().map(Row::to_csv)).collect::<Vec<_>>().join("\n");
+    fs::write(&csv_path, text + "\n").with_context(|| format!("writing {}", csv_path.display()))?;
+    write_table1(&args.out.join("table1.csv"), &table1)?;
+    cutting::write_rows(&args.out.join("cutting.csv"), &cut_rows)?;
+    let provenance = Provenance {
+        machine: machines.join("  \n"),
+        command: format!("`{}`, merging {count} shards: {}", args.command, commands.join(", ")),
+        cut_load: "Each shard's load average is in its own compare.md.".to_string(),
+    };
+    write_report(&args, &provenance, &rows, &stops, &table1, &cut_rows, &[])
+}
+
+fn write_table1(path: &Path, table1: &[Table1Row]) -> Result<()> {
+    let text: String =
+        std::iter::once(TABLE1_HEADER.to_string()).chain(table1.iter().map(table1_to_csv)).collect::<Vec<_>>().join("\n");
+    fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))
+}
+
+/// Writes `compare.md` and the plots of `rows` into `args.out` and prints the report.
+fn write_report(
+    args: &CompareArgs,
+    provenance: &Provenance,
+    rows: &[Row],
+    stops: &[String],
+    table1: &[Table1Row],
+    cut_rows: &[CutRow],
+    cut_errors: &[(String, String)],
+) -> Result<()> {
+    let registered = cleave_registry::registered();
     let order: Vec<String> = registered.iter().map(|r| r.name().to_string()).collect();
     let cannot_cut: Vec<String> =
         registered.iter().filter(|r| !r.capabilities().cut).map(|r| r.name().to_string()).collect();
-    let cut_section = cutting::section(&cut_rows, &order, &cannot_cut, &cut_errors);
-
-    let report = report(&args, &rows, &stops, &table1, &cut_section);
+    let cut_section = cutting::section(cut_rows, &order, &cannot_cut, cut_errors);
+    let report = report(args, provenance, rows, stops, table1, &cut_section);
     println!("{report}");
+    let md_path = args.out.join("compare.md");
     fs::write(&md_path, &report).with_context(|| format!("writing {}", md_path.display()))?;
-    let written = plots::compare_plots(&rows, &args.out)?;
-    println!("wrote {}, {} and {}", csv_path.display(), md_path.display(), written.join(", "));
+    let written = plots::compare_plots(rows, &args.out)?;
+    println!(
+        "wrote {}, {} and {}",
+        args.out.join("compare.csv").display(),
+        md_path.display(),
+        written.join(", ")
+    );
     Ok(())
 }
 
@@ -390,7 +641,14 @@ pub fn tip_error(row: &Row, reference: &TipReference) -> Option<f64> {
     row.tip_uz_avg.map(|t| ((t - reference.value) / reference.value).abs())
 }
 
-fn report(args: &CompareArgs, rows: &[Row], stops: &[String], table1: &[Table1Row], cut_section: &str) -> String {
+fn report(
+    args: &CompareArgs,
+    provenance: &Provenance,
+    rows: &[Row],
+    stops: &[String],
+    table1: &[Table1Row],
+    cut_section: &str,
+) -> String {
     let mut md = String::new();
     let w = &mut md;
     let _ = writeln!(w, "# Backend comparison\n");
@@ -405,14 +663,14 @@ fn report(args: &CompareArgs, rows: &[Row], stops: &[String], table1: &[Table1Ro
         if args.quick { "; `--quick` caps the levels instead" } else { "" }
     );
     let header = format!(
-        "{}  \nCommand: `{}` (release build). Timings are wall-clock medians of 3 repetitions, or of 1 for \
+        "{}  \nCommand: {} (release build). Timings are wall-clock medians of 3 repetitions, or of 1 for \
          runs predicted to take over 3 s (column *reps*). *setup* = building the discretization, loads, \
          Dirichlet data, sparsity pattern and symbolic factorization; *assemble* = matrix values; *solve* = \
          numeric Cholesky factorization and solve; *total* = the whole run without error evaluation. Peak RSS \
          is the process's high-water mark reset before each level (`/proc/self/clear_refs`), so it includes \
          the harness itself.\n",
-        machine_line(),
-        args.command
+        provenance.machine,
+        provenance.command
     );
     let _ = writeln!(w, "## Manufactured solutions (§1)\n");
     let _ = writeln!(
@@ -581,8 +839,7 @@ fn report(args: &CompareArgs, rows: &[Row], stops: &[String], table1: &[Table1Ro
         let _ = writeln!(w);
     }
     let _ = writeln!(w, "![time per phase at each method's finest level](phases.svg)\n");
-    let ran_cut = selection(&args.problems).is_ok_and(|s| s.problems.contains(&Problem::CutCantilever));
-    cut_cantilever_section(w, rows, &header, ran_cut);
+    cut_cantilever_section(w, rows, &header, &provenance.cut_load);
 
     let _ = writeln!(w, "## kaufmann2008 Table 1\n");
     let _ = writeln!(
@@ -692,8 +949,8 @@ pub fn cut_references(rows: &[Row]) -> [(&'static str, &'static str, Option<TipR
 }
 
 /// The "Cut cantilever (§5)" section: references, per-level table, the dynamic cut.
-/// `ran_here`: this invocation ran the cut problems (so the load average describes their timings).
-fn cut_cantilever_section(w: &mut String, rows: &[Row], header: &str, ran_here: bool) {
+/// `load`: the line on the load the timings ran under (or where they came from).
+fn cut_cantilever_section(w: &mut String, rows: &[Row], header: &str, load: &str) {
     let statics = by_method(rows, Problem::CutCantilever);
     let dynamic = by_method(rows, Problem::CutDynamic);
     if statics.is_empty() && dynamic.is_empty() {
@@ -754,11 +1011,7 @@ fn cut_cantilever_section(w: &mut String, rows: &[Row], header: &str, ran_here: 
     let tip_reference = references[0].2.as_ref();
     if !statics.is_empty() {
         let _ = writeln!(w, "{header}");
-        if ran_here {
-            let _ = writeln!(w, "{}\n", crate::machine::load_line());
-        } else {
-            let _ = writeln!(w, "These rows are from an earlier invocation than the command above.\n");
-        }
+        let _ = writeln!(w, "{load}\n");
         let _ = writeln!(
             w,
             "| method | n | DOFs | elements | tip_uz_avg [m] | strain energy [J] | crack opening [m] | tip error | rate | setup [s] | assemble [s] | solve [s] | total [s] | reps | peak RSS [MB] |"

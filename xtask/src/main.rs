@@ -107,6 +107,15 @@ enum Command {
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
+        /// Run the I-th of N disjoint slices of the work list (studies, Table 1 timings, cutting
+        /// runs; round robin) and write only its rows into --out, which it needs; see
+        /// docs/distributed-compare.md.
+        #[arg(long, value_name = "I/N", requires = "out", conflicts_with = "merge")]
+        shard: Option<String>,
+        /// Run nothing: build compare.md, the CSVs and the plots in --out (default docs/results)
+        /// from the rows of every shard's directory.
+        #[arg(long, value_name = "DIR", num_args = 1..)]
+        merge: Vec<PathBuf>,
     },
     /// The headline measurements (bunny_slice, the voxel bunny drop, Table 1's solves, the voxel
     /// stiffness action), appended with the commit to docs/results/perf-history.csv; prints the
@@ -184,18 +193,22 @@ fn main() {
             }
             Ok(())
         }
-        Command::Compare { quick, problem, backend, budget, out, quiet } => {
+        Command::Compare { quick, problem, backend, budget, out, quiet, shard, merge } => {
             if !(budget.is_finite() && budget > 0.0) {
                 Err(anyhow::anyhow!("--budget must be a positive number of seconds, got {budget}"))
             } else {
-                compare::compare(compare::CompareArgs {
-                    quick,
-                    problems: problem,
-                    backends: backend,
-                    budget,
-                    out: default_out(quick, out),
-                    command: typed_command(),
-                    quiet,
+                shard.as_deref().map(compare::Shard::parse).transpose().and_then(|shard| {
+                    let args = compare::CompareArgs {
+                        quick,
+                        problems: problem,
+                        backends: backend,
+                        budget,
+                        out: default_out(quick, out),
+                        command: typed_command(),
+                        quiet,
+                        shard,
+                    };
+                    if merge.is_empty() { compare::compare(args) } else { compare::merge(args, &merge) }
                 })
             }
         }
