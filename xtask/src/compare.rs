@@ -11,8 +11,8 @@ use crate::plots;
 use anyhow::{Context, Result, bail};
 use cleave_registry::registered;
 use cleave_testkit::compare::{
-    CSV_HEADER, CUT_DYNAMIC_CUT_STEP, CUT_DYNAMIC_STEPS, DYNAMIC_STEPS, KAUFMANN2008_TABLE1, Problem,
-    Row, StudyObserver, StudyPlan, Table1Timings, TipReference, cantilever_reference, cut_cantilever_reference,
+    CSV_HEADER, CUT_DYNAMIC_CUT_STEP, CUT_DYNAMIC_STEPS, DYNAMIC_STEPS, KAUFMANN2008_TABLE1, Problem, Row,
+    StudyObserver, StudyPlan, Table1Timings, TipReference, cantilever_reference, cut_cantilever_reference,
     observed_rates, parse_csv, run_study, self_consistency, table1_timings,
 };
 use indicatif::{ProgressBar, ProgressStyle};
@@ -237,7 +237,9 @@ pub struct Shard {
 impl Shard {
     /// Parses `I/N` with 1 ≤ I ≤ N.
     pub fn parse(text: &str) -> Result<Self> {
-        let parsed = text.split_once('/').and_then(|(i, n)| Some((i.trim().parse::<usize>().ok()?, n.trim().parse::<usize>().ok()?)));
+        let parsed = text
+            .split_once('/')
+            .and_then(|(i, n)| Some((i.trim().parse::<usize>().ok()?, n.trim().parse::<usize>().ok()?)));
         match parsed {
             Some((i, n)) if n >= 1 && (1..=n).contains(&i) => Ok(Self { index: i - 1, count: n }),
             _ => bail!("--shard expects I/N with 1 ≤ I ≤ N (for example 2/4), got {text:?}"),
@@ -295,7 +297,9 @@ impl Unit {
     /// A stable name for the unit (the fingerprint of a work list is made of them).
     fn label(&self, chosen: &[Box<dyn cleave_registry::Backend>]) -> String {
         match self {
-            Unit::Study { backend, variant, problem } => format!("study {}/{variant} {}", chosen[*backend].name(), problem.key()),
+            Unit::Study { backend, variant, problem } => {
+                format!("study {}/{variant} {}", chosen[*backend].name(), problem.key())
+            }
             Unit::Table1 { backend, variant } => format!("table1 {}/{variant}", chosen[*backend].name()),
             Unit::Cutting { backend } => format!("cutting {}", chosen[*backend].name()),
         }
@@ -353,9 +357,8 @@ pub fn compare(args: CompareArgs) -> Result<()> {
         .collect();
     // A shard's directory holds its own slice only; otherwise what is not redone is kept.
     let sharded = args.shard.is_some();
-    let redo = |r: &Row| {
-        sharded || studied.iter().any(|(b, v, p)| *b == r.backend && *v == r.variant && *p == r.problem)
-    };
+    let redo =
+        |r: &Row| sharded || studied.iter().any(|(b, v, p)| *b == r.backend && *v == r.variant && *p == r.problem);
     let csv_path = args.out.join("compare.csv");
     let (mut csv, kept) = CsvAppender::open(&csv_path, &redo)?;
     let md_path = args.out.join("compare.md");
@@ -520,7 +523,8 @@ pub fn merge(args: CompareArgs, dirs: &[PathBuf]) -> Result<()> {
             owner.push((key, dir));
             Ok(())
         };
-        let mut studies: Vec<String> = shard_rows.iter().map(|r| format!("study {} {}", r.method(), r.problem)).collect();
+        let mut studies: Vec<String> =
+            shard_rows.iter().map(|r| format!("study {} {}", r.method(), r.problem)).collect();
         studies.dedup();
         for key in studies {
             claim(key)?;
@@ -540,13 +544,16 @@ pub fn merge(args: CompareArgs, dirs: &[PathBuf]) -> Result<()> {
     }
     let count = seen.first().map_or(0, |(s, _)| s.count);
     if seen.len() != count {
-        let missing: Vec<String> =
-            (1..=count).filter(|i| !seen.iter().any(|(s, _)| s.index + 1 == *i)).map(|i| format!("{i}/{count}")).collect();
+        let missing: Vec<String> = (1..=count)
+            .filter(|i| !seen.iter().any(|(s, _)| s.index + 1 == *i))
+            .map(|i| format!("{i}/{count}"))
+            .collect();
         bail!("the merge lacks shard(s) {} of the split", missing.join(", "));
     }
     fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let csv_path = args.out.join("compare.csv");
-    let text: String = std::iter::once(CSV_HEADER.to_string()).chain(rows.iter().map(Row::to_csv)).collect::<Vec<_>>().join("\n");
+    let text: String =
+        std::iter::once(CSV_HEADER.to_string()).chain(rows.iter().map(Row::to_csv)).collect::<Vec<_>>().join("\n");
     fs::write(&csv_path, text + "\n").with_context(|| format!("writing {}", csv_path.display()))?;
     write_table1(&args.out.join("table1.csv"), &table1)?;
     cutting::write_rows(&args.out.join("cutting.csv"), &cut_rows)?;
@@ -559,8 +566,10 @@ pub fn merge(args: CompareArgs, dirs: &[PathBuf]) -> Result<()> {
 }
 
 fn write_table1(path: &Path, table1: &[Table1Row]) -> Result<()> {
-    let text: String =
-        std::iter::once(TABLE1_HEADER.to_string()).chain(table1.iter().map(table1_to_csv)).collect::<Vec<_>>().join("\n");
+    let text: String = std::iter::once(TABLE1_HEADER.to_string())
+        .chain(table1.iter().map(table1_to_csv))
+        .collect::<Vec<_>>()
+        .join("\n");
     fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))
 }
 
@@ -584,12 +593,7 @@ fn write_report(
     let md_path = args.out.join("compare.md");
     fs::write(&md_path, &report).with_context(|| format!("writing {}", md_path.display()))?;
     let written = plots::compare_plots(rows, &args.out)?;
-    println!(
-        "wrote {}, {} and {}",
-        args.out.join("compare.csv").display(),
-        md_path.display(),
-        written.join(", ")
-    );
+    println!("wrote {}, {} and {}", args.out.join("compare.csv").display(), md_path.display(), written.join(", "));
     Ok(())
 }
 
@@ -669,8 +673,7 @@ fn report(
          numeric Cholesky factorization and solve; *total* = the whole run without error evaluation. Peak RSS \
          is the process's high-water mark reset before each level (`/proc/self/clear_refs`), so it includes \
          the harness itself.\n",
-        provenance.machine,
-        provenance.command
+        provenance.machine, provenance.command
     );
     let _ = writeln!(w, "## Manufactured solutions (§1)\n");
     let _ = writeln!(

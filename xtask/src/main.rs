@@ -128,6 +128,10 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// One measurement of `perf` in a process of its own: the peak memory per voxel of a 100³
+    /// voxel box taking one step.
+    #[command(hide = true)]
+    PerfMemory,
     /// The stability grid (E × ν × h and extreme starts) for every registered backend; write
     /// stability.md and stability.csv.
     Stability {
@@ -213,6 +217,7 @@ fn main() {
             }
         }
         Command::Perf { history, quiet } => perf::perf(perf::PerfArgs { history, quiet }),
+        Command::PerfMemory => perf::memory_child(perf::MEMORY_BOX_EDGE),
         Command::Tidy => {
             let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
             let violations = tidy::check(&root);

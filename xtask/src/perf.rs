@@ -6,7 +6,8 @@
 //! steps that cut and the others; contact's share of the step), `scenes/bunny_drop_voxel.ron`
 //! (steps/s, CG iterations a step), kaufmann2008 Table 1 (numeric factorization and solve of the
 //! four DG variants, median of three), the voxel stiffness action on 10,164 cubes, and the static
-//! voxel cantilever at n = 16 (build, assembly and direct solve, as `compare` times it). Timings
+//! voxel cantilever at n = 16 (build, assembly and direct solve, as `compare` times it), and the
+//! peak memory per voxel of a 100³ box taking one step, in a child process of its own. Timings
 //! share the machine with whatever else runs: the row keeps the load average, and a change that
 //! claims a gain should alternate old and new builds.
 
@@ -22,7 +23,7 @@ use std::process::Command;
 use std::time::Instant;
 
 /// Columns of `perf-history.csv`, after the date, commit and load.
-const FIGURES: [(&str, bool); 12] = [
+const FIGURES: [(&str, bool); 13] = [
     // (name, larger is better)
     ("bunny_slice_steps_per_s", true),
     ("bunny_slice_cutting_steps_per_s", true),
@@ -36,6 +37,7 @@ const FIGURES: [(&str, bool); 12] = [
     ("table1_ip2_solve_ms", false),
     ("voxel_stiffness_gflops", true),
     ("voxel_cantilever_n16_s", false),
+    ("voxel_memory_kb_per_voxel", false),
 ];
 
 /// Parsed arguments of `cargo xtask perf`.
@@ -74,6 +76,8 @@ pub fn perf(args: PerfArgs) -> Result<()> {
     let row = run_problem(voxel.as_ref(), "trilinear", Problem::Cantilever, 16)
         .map_err(|e| anyhow::anyhow!("static cantilever: {e}"))?;
     figures.push(row.seconds_total.unwrap_or(f64::NAN));
+    say("peak memory per voxel at 1M voxels (a child process)");
+    figures.push(memory_per_voxel()?);
 
     let commit = git(&["rev-parse", "--short", "HEAD"]).unwrap_or_else(|| "unknown".into());
     // Changes to tracked files other than the history itself (which the last run edited).
@@ -192,6 +196,64 @@ fn stiffness_gflops() -> Result<f64> {
     }
     std::hint::black_box(&out);
     Ok(cubes as f64 * 1392.0 / best / 1e9)
+}
+
+/// Edge of the memory measurement's box, in cubes (100³ = 1M voxels, issue 35's size).
+pub const MEMORY_BOX_EDGE: usize = 100;
+
+/// Peak resident memory per voxel [KB = 1000 B] of [`memory_child`], run as `xtask perf-memory`
+/// in a process of its own so nothing this process holds counts.
+fn memory_per_voxel() -> Result<f64> {
+    let exe = std::env::current_exe().context("finding the xtask binary")?;
+    let out = Command::new(exe).arg("perf-memory").output().context("running xtask perf-memory")?;
+    if !out.status.success() {
+        bail!("xtask perf-memory failed: {}", String::from_utf8_lossy(&out.stderr).trim());
+    }
+    let text = String::from_utf8_lossy(&out.stdout);
+    text.lines()
+        .find_map(|l| l.strip_prefix("kb_per_voxel "))
+        .and_then(|v| v.trim().parse().ok())
+        .with_context(|| format!("xtask perf-memory printed no kb_per_voxel line: {text}"))
+}
+
+/// A box of `edge³` voxels resting on a ground plane through its bottom nodes (one contact row
+/// each), one matrix-free block-Jacobi CG step at the scene tolerance, then the peak resident
+/// set (`VmHWM`, everything included) per voxel, printed as `kb_per_voxel X`.
+pub fn memory_child(edge: usize) -> Result<()> {
+    use cleave_integrator::{Constraints, Integrator, PlaneCollider, Preconditioner, Settings, Solver};
+    let voxel =
+        registered().into_iter().find(|b| b.name() == "voxel").context("the voxel backend is not registered")?;
+    let h = 0.2 / edge as Real;
+    let grid = BoxGrid { origin: Point3::new(0.0, 0.0, 0.01), h, dims: [edge, edge, edge] };
+    let material = cleave_core::Material::new(2e5, 0.3, 1000.0)?.with_damping(0.0, 0.01)?;
+    let nowhere = |_: &Point3<Real>| false;
+    let zero = |_: &Point3<Real>| Vector3::zeros();
+    let built = voxel
+        .build_box("trilinear", &material, &grid, &DirichletSpec { region: &nowhere, value: &zero })
+        .map_err(|e| anyhow::anyhow!("building the voxel box: {e}"))?;
+    let mesh = built.discretization.as_ref();
+    let bottom: Vec<Point3<Real>> =
+        mesh.rest_dofs().chunks(3).filter(|p| p[2] < 0.01 + 0.5 * h).map(|p| Point3::new(p[0], p[1], p[2])).collect();
+    let contact = mesh.embed(&bottom).map_err(|e| anyhow::anyhow!("embedding the bottom nodes: {e}"))?;
+    drop(bottom);
+    let mut settings = Settings::new(1.0 / 60.0);
+    settings.rayleigh_beta = 0.01;
+    settings.solver = Solver::ConjugateGradient { tolerance: 1e-3, max_iterations: 2000, assembled: false };
+    settings.preconditioner = Preconditioner::BlockJacobi;
+    let ground =
+        PlaneCollider { point: Point3::origin(), normal: Vector3::z(), stiffness: 2e4, damping: 20.0, friction: 0.0 };
+    let constraints = Constraints { contact_points: Some(contact), planes: vec![ground], ..Default::default() };
+    let mut integrator = Integrator::new(mesh, settings, constraints)?;
+    integrator.step(mesh)?;
+    let status = fs::read_to_string("/proc/self/status").context("reading /proc/self/status")?;
+    let kib: f64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+        .context("no VmHWM in /proc/self/status")?;
+    let voxels = (edge * edge * edge) as f64;
+    println!("kb_per_voxel {}", kib * 1024.0 / 1000.0 / voxels);
+    Ok(())
 }
 
 fn git(args: &[&str]) -> Option<String> {

@@ -84,17 +84,49 @@ pub struct BlockRef<'a> {
     pub anchor: Option<&'a DMatrix<Real>>,
 }
 
+/// A per-block list of indices, stored as `first + stride · b` when it is one: a voxel mesh's
+/// blocks all have rest matrix 0, frame b, no anchor and offset 8b, and the four lists would
+/// take 16 B a cube (16 MB at a million voxels, docs/results/voxel-bench.md).
+#[derive(Clone, Debug)]
+enum PerBlock {
+    Affine { first: u32, stride: u32 },
+    Each(Vec<u32>),
+}
+
+impl PerBlock {
+    fn new(mut list: Vec<u32>) -> Self {
+        let first = list.first().copied().unwrap_or(0);
+        let stride = list.get(1).map_or(0, |&second| second.wrapping_sub(first));
+        let affine = list.iter().enumerate().all(|(b, &v)| v == first.wrapping_add(stride.wrapping_mul(b as u32)));
+        if affine {
+            Self::Affine { first, stride }
+        } else {
+            list.shrink_to_fit();
+            Self::Each(list)
+        }
+    }
+
+    #[inline]
+    fn get(&self, b: usize) -> u32 {
+        match self {
+            Self::Affine { first, stride } => first.wrapping_add(stride.wrapping_mul(b as u32)),
+            Self::Each(list) => list[b],
+        }
+    }
+}
+
 /// Blocks `{nodes, rest matrix id, frame}` over a library of rest matrices.
 #[derive(Clone, Debug)]
 pub struct BlockSet {
     num_nodes: usize,
+    num_blocks: usize,
     rest_matrices: Vec<DMatrix<Real>>,
-    offsets: Vec<u32>,
+    offsets: PerBlock,
     nodes: Vec<u32>,
-    rest_ids: Vec<u32>,
-    frames: Vec<u32>,
+    rest_ids: PerBlock,
+    frames: PerBlock,
     /// Per block, the index into `anchors` or `NO_ANCHOR`.
-    anchor_ids: Vec<u32>,
+    anchor_ids: PerBlock,
     anchors: Vec<DMatrix<Real>>,
     translation_invariant: bool,
     plan: ScatterPlan,
@@ -169,7 +201,9 @@ impl BlockSetBuilder {
     }
 
     /// Validates and plans the parallel scatter for a mesh of `num_nodes` nodes.
-    pub fn finish(self, num_nodes: usize) -> Result<BlockSet, BlockSetError> {
+    pub fn finish(mut self, num_nodes: usize) -> Result<BlockSet, BlockSetError> {
+        // The node list grew by doubling; a million cubes would keep up to twice its size.
+        self.nodes.shrink_to_fit();
         let num_blocks = self.rest_ids.len();
         for b in 0..num_blocks {
             let nodes = &self.nodes[self.offsets[b] as usize..self.offsets[b + 1] as usize];
@@ -192,12 +226,13 @@ impl BlockSetBuilder {
         });
         Ok(BlockSet {
             num_nodes,
+            num_blocks,
             rest_matrices: self.rest_matrices,
-            offsets: self.offsets,
+            offsets: PerBlock::new(self.offsets),
             nodes: self.nodes,
-            rest_ids: self.rest_ids,
-            frames: self.frames,
-            anchor_ids: self.anchor_ids,
+            rest_ids: PerBlock::new(self.rest_ids),
+            frames: PerBlock::new(self.frames),
+            anchor_ids: PerBlock::new(self.anchor_ids),
             anchors: self.anchors,
             translation_invariant: self.translation_invariant,
             plan,
@@ -208,12 +243,12 @@ impl BlockSetBuilder {
 impl BlockSet {
     /// Number of blocks.
     pub fn len(&self) -> usize {
-        self.rest_ids.len()
+        self.num_blocks
     }
 
     /// True when there are no blocks.
     pub fn is_empty(&self) -> bool {
-        self.rest_ids.is_empty()
+        self.num_blocks == 0
     }
 
     /// Number of nodes of the mesh the blocks live on.
@@ -229,19 +264,24 @@ impl BlockSet {
     /// Block `b`.
     #[inline]
     pub fn block(&self, b: usize) -> BlockRef<'_> {
-        let frame = self.frames[b];
-        let anchor = self.anchor_ids[b];
+        let frame = self.frames.get(b);
+        let anchor = self.anchor_ids.get(b);
         BlockRef {
-            nodes: &self.nodes[self.offsets[b] as usize..self.offsets[b + 1] as usize],
-            rest: &self.rest_matrices[self.rest_ids[b] as usize],
+            nodes: &self.nodes[self.offsets.get(b) as usize..self.offsets.get(b + 1) as usize],
+            rest: &self.rest_matrices[self.rest_ids.get(b) as usize],
             frame: (frame != NO_FRAME).then_some(frame),
             anchor: (anchor != NO_ANCHOR).then(|| &self.anchors[anchor as usize]),
         }
     }
 
+    /// Every block's nodes, one list after the other in block order.
+    pub fn all_nodes(&self) -> &[u32] {
+        &self.nodes
+    }
+
     /// Node lists of all blocks (for building an [`AssemblyPattern`]).
     pub fn node_groups(&self) -> impl Iterator<Item = &[u32]> {
-        (0..self.len()).map(|b| &self.nodes[self.offsets[b] as usize..self.offsets[b + 1] as usize])
+        (0..self.len()).map(|b| &self.nodes[self.offsets.get(b) as usize..self.offsets.get(b + 1) as usize])
     }
 
     /// The plan the parallel kernels scatter with.
@@ -546,6 +586,25 @@ fn scatter_rotated(r: &Matrix3<Real>, y: &[Real], nodes: &[u32], scale: Real, bu
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn per_block_lists_are_compact_only_when_affine_and_read_back_the_same() {
+        let cases: [(Vec<u32>, bool); 6] = [
+            ((0..1000).map(|b| 8 * b).collect(), true),
+            (vec![0; 1000], true),
+            (vec![NO_ANCHOR; 7], true),
+            (vec![5], true),
+            (vec![0, 1, 3, 4], false),
+            ((0..1000).map(|b| if b == 999 { 0 } else { b }).collect(), false),
+        ];
+        for (list, affine) in cases {
+            let compact = PerBlock::new(list.clone());
+            assert_eq!(matches!(compact, PerBlock::Affine { .. }), affine, "{:?}", &list[..list.len().min(5)]);
+            for (b, &v) in list.iter().enumerate() {
+                assert_eq!(compact.get(b), v, "entry {b}");
+            }
+        }
+    }
 
     /// A symmetric `3n × 3n` rest matrix with entries from a fixed pseudo-random sequence.
     fn rest_matrix(n: usize, seed: u64) -> DMatrix<Real> {

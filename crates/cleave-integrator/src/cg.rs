@@ -32,6 +32,15 @@ impl CgWorkspace {
         }
     }
 
+    /// Three of the vectors, of length `n`, as scratch space for work between solves (a solve
+    /// overwrites them before it reads them): the step's force, trial positions and stiffness
+    /// actions live here instead of in their own arrays, 72 B a node less at a million voxels.
+    /// Their contents are unspecified.
+    pub fn spare(&mut self, n: usize) -> [&mut [Real]; 3] {
+        self.resize(n);
+        [&mut self.r, &mut self.z, &mut self.p]
+    }
+
     /// Solves `A x = b` from the initial guess in `x`, until `‖r‖ ≤ tol · max(‖b‖, scale)`.
     ///
     /// `scale` is a floor for the right-hand side's norm: a body at rest has `b → 0` while the

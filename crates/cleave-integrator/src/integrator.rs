@@ -205,11 +205,9 @@ struct StepScales {
 #[derive(Debug, Default)]
 struct Workspace {
     rhs: Vec<Real>,
-    force: Vec<Real>,
-    scratch: Vec<Real>,
-    /// `x + h v⁺` of the step's solution and its rotations (warm-started from the step's), with
-    /// the inverted count: the end-of-step rotations when no refresh follows.
-    trial_x: Vec<Real>,
+    /// The rotations of `x + h v⁺` (warm-started from the step's), with the inverted count: the
+    /// end-of-step rotations when no refresh follows. (The step's force, trial positions and
+    /// stiffness actions live in the CG vectors between solves: `CgWorkspace::spare`.)
     trial_rotations: Vec<Matrix3<Real>>,
     trial_inverted: Option<usize>,
     preconditioner: Vec<Matrix3<Real>>,
@@ -369,10 +367,12 @@ impl Integrator {
             }
         }
         self.work.rhs = vec![0.0; n];
-        self.work.force = vec![0.0; n];
-        self.work.scratch = vec![0.0; n];
-        self.work.trial_x = vec![0.0; n];
-        self.work.trial_rotations = vec![Matrix3::identity(); self.rotations.len()];
+        self.work.cg.spare(n);
+        // Only a refresh compares the trial rotations with the step's (72 B a frame otherwise).
+        self.work.trial_rotations = match self.settings.rotation_refresh_angle {
+            Some(_) => vec![Matrix3::identity(); self.rotations.len()],
+            None => Vec::new(),
+        };
         self.work.preconditioner = vec![Matrix3::zeros(); discretization.num_nodes()];
         let previous = std::mem::take(&mut self.work.contacts);
         self.work.contacts = match prepared {
@@ -659,7 +659,11 @@ impl Integrator {
     fn detect_and_load(&mut self, discretization: &dyn Discretization, seconds: &mut PhaseSeconds) {
         let h = self.settings.time_step;
         let mass = discretization.mass();
-        let Workspace { rhs, force, .. } = &mut self.work;
+        // The force lives in a CG vector until the right-hand side has it (taken out of `self`
+        // so the contact and pin loops can borrow the rest; a move, no allocation).
+        let mut cg = std::mem::take(&mut self.work.cg);
+        let [force, _, _] = cg.spare(self.x.len());
+        let rhs = &mut self.work.rhs;
         force.copy_from_slice(&self.external_force);
         discretization.add_internal_force(&self.rotations, &self.x, force);
         if !self.free_pieces.is_empty() {
@@ -677,15 +681,16 @@ impl Integrator {
         self.contacts_stale = false;
         seconds.contact = contact_clock.elapsed().as_secs_f64();
         let forces_clock = Instant::now();
-        self.add_penalty_forces();
+        self.add_penalty_forces(force);
         seconds.contact_forces += forces_clock.elapsed().as_secs_f64();
-        let Workspace { rhs, force, .. } = &mut self.work;
+        let rhs = &mut self.work.rhs;
         rhs.par_iter_mut().zip(&*force).for_each(|(r, f)| *r += h * f);
         for (r, &p) in rhs.iter_mut().zip(&self.pinned) {
             if p {
                 *r = 0.0;
             }
         }
+        self.work.cg = cg;
     }
 
     /// The epoch's assembled system when a topology change left it to this step: its pattern
@@ -960,7 +965,8 @@ impl Integrator {
         // "Angular momentum"): elastic torque and contact couples, from the solved v⁺ (after
         // the normal forces friction lags are stored from it).
         if !self.free_pieces.is_empty() {
-            let kv = &mut self.work.scratch;
+            let mut cg = std::mem::take(&mut self.work.cg);
+            let [kv, _, _] = cg.spare(self.x.len());
             kv.iter_mut().for_each(|k| *k = 0.0);
             discretization.add_stiffness_action(&self.rotations, &self.v, 1.0, kv);
             if self.constraints.surface_contact.is_some()
@@ -972,8 +978,8 @@ impl Integrator {
                 });
             }
             let beta = self.settings.rayleigh_beta;
-            let kv = &self.work.scratch;
             self.free_pieces.cancel_elastic_torque(&self.x, mass.diagonal(), kv, h, beta, &mut self.v);
+            self.work.cg = cg;
         }
         self.x.par_iter_mut().zip(&self.v).for_each(|(x, v)| *x += h * v);
         let rest = discretization.rest_dofs();
@@ -1024,11 +1030,12 @@ impl Integrator {
     fn refresh_rotations(&mut self, discretization: &dyn Discretization, h: Real, seconds: &mut PhaseSeconds) -> bool {
         let Some(limit) = self.settings.rotation_refresh_angle else { return false };
         let clock = Instant::now();
-        let Workspace { trial_x, trial_rotations, .. } = &mut self.work;
+        let mut cg = std::mem::take(&mut self.work.cg);
+        let [trial_x, scratch, _] = cg.spare(self.x.len());
         trial_x.par_iter_mut().zip(&self.x).zip(&self.v).for_each(|((t, x), v)| *t = x + h * v);
-        trial_rotations.copy_from_slice(&self.rotations);
+        self.work.trial_rotations.copy_from_slice(&self.rotations);
         self.work.trial_inverted =
-            Some(discretization.write_rotations(&self.work.trial_x, &mut self.work.trial_rotations).inverted);
+            Some(discretization.write_rotations(trial_x, &mut self.work.trial_rotations).inverted);
         // cos of the largest turn: tr(Aᵀ B) = 1 + 2 cos θ.
         let cos_turn = self
             .rotations
@@ -1038,10 +1045,10 @@ impl Integrator {
             .reduce(|| 1.0, Real::min);
         seconds.rotations += clock.elapsed().as_secs_f64();
         if cos_turn >= limit.cos() {
+            self.work.cg = cg;
             return false;
         }
         // rhs += h (f(R⁺, x) − f(R, x)) on the free DOFs.
-        let scratch = &mut self.work.scratch;
         scratch.iter_mut().for_each(|s| *s = 0.0);
         discretization.add_internal_force(&self.work.trial_rotations, &self.x, scratch);
         scratch.iter_mut().for_each(|s| *s = -*s);
@@ -1053,11 +1060,12 @@ impl Integrator {
         }
         std::mem::swap(&mut self.rotations, &mut self.work.trial_rotations);
         self.work.trial_inverted = None;
+        self.work.cg = cg;
         true
     }
 
     /// Adds contact forces (found by [`ContactSet::detect`] at the start of the step) and
-    /// penalty-pin forces at `x` to `work.force`.
+    /// penalty-pin forces at `x` to `force`.
     ///
     /// A contact is active when its point is below the surface at `x` or would be at
     /// `x + h (v + h g)` (gravity only for points not moving away): a point 2.4 m/s fast moves
@@ -1068,8 +1076,7 @@ impl Integrator {
     /// part). A point still above the surface (`d > 0`) only has its approach stopped: the
     /// consistent `−k d` would pull it down, and points at the edge of a resting patch,
     /// flickering in and out of the active set, would pump energy into the body through it.
-    fn add_penalty_forces(&mut self) {
-        let force = &mut self.work.force;
+    fn add_penalty_forces(&self, force: &mut [Real]) {
         if let Some(points) = &self.constraints.contact_points {
             cleave_contact::add_forces(points, self.work.contacts.contacts(), force);
         }

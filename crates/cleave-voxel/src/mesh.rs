@@ -81,9 +81,9 @@ pub struct VoxelMesh {
     material: Material,
     origin: Point3<Real>,
     h: Real,
+    /// Sorted z-major (`(z, y, x)`): `cube_at` is a binary search. A hash table, as the paper
+    /// has, took 35 B a cube more (docs/results/voxel-bench.md, memory).
     cells: Vec<[i32; 3]>,
-    cell_index: HashMap<[i32; 3], u32>,
-    cube_nodes: Vec<[u32; 8]>,
     node_coords: Vec<[i32; 3]>,
     rest: Vec<Real>,
     mass: Mass,
@@ -218,8 +218,8 @@ impl VoxelMesh {
         let cube_nodes: Vec<[u32; 8]> = (0..cells.len())
             .map(|cube| std::array::from_fn(|c| class_node[&(copies.find(8 * cube + c) as u32)]))
             .collect();
-        let rest: Vec<Real> =
-            node_coords.iter().flat_map(|c| (0..3).map(move |a| origin[a] + h * c[a] as Real)).collect();
+        let mut rest: Vec<Real> = Vec::with_capacity(3 * node_coords.len());
+        rest.extend(node_coords.iter().flat_map(|c| (0..3).map(move |a| origin[a] + h * c[a] as Real)));
         let mut lumped = vec![0.0; 3 * node_coords.len()];
         let corner_mass = material.density * h * h * h / 8.0;
         for nodes in &cube_nodes {
@@ -235,14 +235,13 @@ impl VoxelMesh {
         for (cube, nodes) in cube_nodes.iter().enumerate() {
             builder.push(nodes, rest_id, Some(cube as u32));
         }
+        drop(cube_nodes);
         let blocks = builder.finish(node_coords.len())?;
         Ok(Self {
             material,
             origin,
             h,
             cells,
-            cell_index,
-            cube_nodes,
             node_coords,
             rest,
             mass: Mass::Lumped(lumped),
@@ -270,7 +269,7 @@ impl VoxelMesh {
         mesh.coarsening = self.coarsening;
         let source: Vec<u32> = {
             let mut source = vec![u32::MAX; mesh.num_nodes()];
-            for (new, old) in mesh.cube_nodes.iter().zip(&self.cube_nodes) {
+            for (new, old) in mesh.cube_nodes().iter().zip(self.cube_nodes()) {
                 for (&n, &o) in new.iter().zip(old) {
                     source[n as usize] = o;
                 }
@@ -328,7 +327,8 @@ impl VoxelMesh {
 
     /// Node indices of every cube, corner `c = bx + 2by + 4bz`.
     pub fn cube_nodes(&self) -> &[[u32; 8]] {
-        &self.cube_nodes
+        // One copy: the block set's node lists, one block of 8 per cube in cube order.
+        self.blocks.all_nodes().as_chunks::<8>().0
     }
 
     /// Integer lattice coordinates of every node.
@@ -341,16 +341,16 @@ impl VoxelMesh {
         &self.stiffness
     }
 
-    /// Index of the cube at integer coordinates, if present (O(1), the paper's hash table).
+    /// Index of the cube at integer coordinates, if present (a binary search of the sorted cells).
     pub fn cube_at(&self, cell: [i32; 3]) -> Option<usize> {
-        self.cell_index.get(&cell).map(|&i| i as usize)
+        self.cells.binary_search_by_key(&(cell[2], cell[1], cell[0]), |c| (c[2], c[1], c[0])).ok()
     }
 
     /// Deformation gradient at the center of `cube`: `F = Σ_c x_c s_cᵀ / (4h)`, which is `I` at
     /// rest (docs/math/voxel-stiffness.md §4).
     pub fn center_gradient(&self, cube: usize, x: &[Real]) -> Matrix3<Real> {
         let mut f = Matrix3::zeros();
-        for (c, &n) in self.cube_nodes[cube].iter().enumerate() {
+        for (c, &n) in self.cube_nodes()[cube].iter().enumerate() {
             let s = corner_signs(c);
             let p = &x[3 * n as usize..3 * n as usize + 3];
             for a in 0..3 {
@@ -390,7 +390,7 @@ impl VoxelMesh {
             coarse_nodes.iter().enumerate().map(|(i, c)| (*c, i as u32)).collect();
         // One parent per fine node: the parent of any cube touching it.
         let mut node_parent: Vec<Option<[i32; 3]>> = vec![None; self.node_coords.len()];
-        for (cell, nodes) in self.cells.iter().zip(&self.cube_nodes) {
+        for (cell, nodes) in self.cells.iter().zip(self.cube_nodes()) {
             for &n in nodes {
                 node_parent[n as usize].get_or_insert_with(|| parent(cell));
             }
@@ -451,7 +451,7 @@ impl VoxelMesh {
         // action's speed on the voxel bunny (docs/results/voxel-bench.md, "Run-time SIMD").
         let arch = pulp::Arch::new();
         self.blocks.scatter_plan().scatter_add(out, |cube, buf, base| {
-            let nodes = &self.cube_nodes[cube];
+            let nodes = &self.cube_nodes()[cube];
             let r = &rotations[cube];
             let mut local = [0.0; 24];
             // For the force, positions are taken relative to the cube's first corner (in x and
@@ -575,7 +575,7 @@ impl Discretization for VoxelMesh {
                         let p = corner + Vector3::new(t[0], t[1], t[2]) * self.h;
                         let f = force_density(&p) * (wa * wb * wc * jacobian);
                         let (values, _) = self.shape(t);
-                        for (c, &n) in self.cube_nodes[cube].iter().enumerate() {
+                        for (c, &n) in self.cube_nodes()[cube].iter().enumerate() {
                             for a in 0..3 {
                                 out[3 * n as usize + a] += values[c] * f[a];
                             }
@@ -613,7 +613,7 @@ impl Discretization for VoxelMesh {
                 return Err(EmbedError::Outside { index, x: p.x, y: p.y, z: p.z });
             };
             let (weights, _) = self.shape(t);
-            embedding.push_row(&self.cube_nodes[cube], &weights);
+            embedding.push_row(&self.cube_nodes()[cube], &weights);
         }
         Ok(embedding)
     }
@@ -630,7 +630,7 @@ impl Discretization for VoxelMesh {
                         let (values, gradients) = self.shape(t);
                         let mut u = Vector3::zeros();
                         let mut grad = Matrix3::zeros();
-                        for (c, &n) in self.cube_nodes[cube].iter().enumerate() {
+                        for (c, &n) in self.cube_nodes()[cube].iter().enumerate() {
                             let d = &displacement[3 * n as usize..3 * n as usize + 3];
                             for a in 0..3 {
                                 u[a] += values[c] * d[a];
