@@ -66,6 +66,8 @@ pub struct SparseCholesky {
     flops: f64,
     /// faer's parallelism for this factor's factorizations and solves ([`parallelism`]).
     par: Par,
+    /// The fill-reducing ordering chosen.
+    ordering: FillOrdering,
 }
 
 /// The lower triangle of `P A Pᵀ` as the supernodal factorization reads it, and for each of its
@@ -219,33 +221,95 @@ fn factor_flops(symbolic: &SymbolicCholesky<usize>) -> f64 {
     }
 }
 
+/// Parts of at most this many groups are ordered by AMD instead of dissected further.
+const DISSECTION_LEAF: usize = 256;
+
+/// Factor work above which [`FillOrdering::Auto`] also tries nested dissection (about 0.5 s of
+/// factorization here, so the second ordering and symbolic analysis cost a few percent of one
+/// factorization). Below it every measured system (bunny_slice's 5k DOFs, the voxel bunny's
+/// coarse space) factors with less work under AMD (docs/results/voxel-bench.md, orderings).
+pub const AUTO_DISSECTION_FLOPS: f64 = 1e10;
+
+/// The fill-reducing ordering of a [`SparseCholesky`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FillOrdering {
+    /// Approximate minimum degree (faer's AMD) of the node graph.
+    Amd,
+    /// Nested dissection of the node graph by METIS bisections, AMD on small parts.
+    NestedDissection,
+    /// AMD, and for factors above [`AUTO_DISSECTION_FLOPS`] also nested dissection, keeping the
+    /// ordering whose factor takes fewer operations.
+    #[default]
+    Auto,
+}
+
+/// The scalar ordering of `fill_ordering` (`Amd` or `NestedDissection`) with its node maps
+/// (`new_node[old]`, `old_node[new]`).
+fn node_ordering(
+    pattern: &AssemblyPattern,
+    graph: &QuotientGraph,
+    fill_ordering: FillOrdering,
+) -> Result<(ScalarOrdering, Vec<usize>, Vec<u32>), CholeskyError> {
+    let order = match fill_ordering {
+        FillOrdering::NestedDissection => graph.nested_dissection()?,
+        FillOrdering::Amd | FillOrdering::Auto => graph.amd()?,
+    };
+    let ordering = graph.expand(&order);
+    let nodes = pattern.num_nodes();
+    let new_node: Vec<usize> = (0..nodes).map(|n| ordering.perm_inv[3 * n] / 3).collect();
+    let mut old_node = vec![0u32; nodes];
+    for (n, &p) in new_node.iter().enumerate() {
+        old_node[p] = n as u32;
+    }
+    Ok((ordering, new_node, old_node))
+}
+
+/// faer's symbolic Cholesky of the permuted upper triangle.
+fn symbolic_of(
+    pattern: &AssemblyPattern,
+    new_node: &[usize],
+    old_node: &[u32],
+) -> Result<SymbolicCholesky<usize>, CholeskyError> {
+    let upper = permuted_upper(pattern, new_node, old_node);
+    factorize_symbolic_cholesky(upper.as_ref(), Side::Upper, SymmetricOrdering::Identity, Default::default())
+        .map_err(|e| CholeskyError::Setup(format!("symbolic factorization: {e:?}")))
+}
+
 impl SparseCholesky {
-    /// Orders the node graph of `pattern` and builds the symbolic factorization (once per pattern).
+    /// Orders the node graph of `pattern` ([`FillOrdering::Auto`]) and builds the symbolic
+    /// factorization (once per pattern).
     pub fn new(pattern: &AssemblyPattern) -> Result<Self, CholeskyError> {
+        Self::with_ordering(pattern, FillOrdering::Auto)
+    }
+
+    /// [`SparseCholesky::new`] with a chosen fill-reducing ordering.
+    pub fn with_ordering(pattern: &AssemblyPattern, fill_ordering: FillOrdering) -> Result<Self, CholeskyError> {
         let dim = pattern.dim();
         let graph = QuotientGraph::new(pattern);
-        let ordering = graph.expand(&graph.amd()?);
-        let nodes = pattern.num_nodes();
-        let new_node: Vec<usize> = (0..nodes).map(|n| ordering.perm_inv[3 * n] / 3).collect();
-        let mut old_node = vec![0u32; nodes];
-        for (n, &p) in new_node.iter().enumerate() {
-            old_node[p] = n as u32;
-        }
+        let first = match fill_ordering {
+            FillOrdering::NestedDissection => FillOrdering::NestedDissection,
+            FillOrdering::Amd | FillOrdering::Auto => FillOrdering::Amd,
+        };
+        let (mut ordering, new_node, old_node) = node_ordering(pattern, &graph, first)?;
+        let mut chosen = first;
         // The permuted lower triangle beside the symbolic analysis of the upper (both
         // sequential; on a busy pool the second waits for a free thread).
-        let (symbolic, permuted) = rayon::join(
-            || {
-                let upper = permuted_upper(pattern, &new_node, &old_node);
-                factorize_symbolic_cholesky(
-                    upper.as_ref(),
-                    Side::Upper,
-                    SymmetricOrdering::Identity,
-                    Default::default(),
-                )
-            },
+        let (symbolic, mut permuted) = rayon::join(
+            || symbolic_of(pattern, &new_node, &old_node),
             || PermutedLower::new(pattern, &new_node, &old_node),
         );
-        let symbolic = symbolic.map_err(|e| CholeskyError::Setup(format!("symbolic factorization: {e:?}")))?;
+        let mut symbolic = symbolic?;
+        if fill_ordering == FillOrdering::Auto && factor_flops(&symbolic) > AUTO_DISSECTION_FLOPS {
+            // A large factor: nested dissection may need far less work (the voxel cantilever:
+            // half), or more (DG's Table 1 grids: 1.5×); keep the ordering with fewer flops.
+            let (nd_ordering, nd_new, nd_old) = node_ordering(pattern, &graph, FillOrdering::NestedDissection)?;
+            let nd_symbolic = symbolic_of(pattern, &nd_new, &nd_old)?;
+            if factor_flops(&nd_symbolic) < factor_flops(&symbolic) {
+                permuted = PermutedLower::new(pattern, &nd_new, &nd_old);
+                (ordering, symbolic) = (nd_ordering, nd_symbolic);
+                chosen = FillOrdering::NestedDissection;
+            }
+        }
         let order_groups = ordering.groups;
         let flops = factor_flops(&symbolic);
         let par = parallelism(flops);
@@ -279,7 +343,13 @@ impl SparseCholesky {
             permuted,
             flops,
             par,
+            ordering: chosen,
         })
+    }
+
+    /// The fill-reducing ordering the factor uses (`Amd` or `NestedDissection`).
+    pub fn ordering(&self) -> FillOrdering {
+        self.ordering
     }
 
     /// Nonzeros of the factor `L`.
@@ -499,6 +569,136 @@ impl QuotientGraph {
         ScalarOrdering { perm, perm_inv, groups: self.groups() }
     }
 
+    /// Nested-dissection order of the groups: the graph is bisected by METIS (its multilevel
+    /// recursive bisection; the safe binding has no `NodeND`, and the workspace forbids the FFI),
+    /// each edge separator becomes a vertex separator (the cut's end points on the side that has
+    /// fewer of them), the two halves are ordered recursively before their separator, and parts
+    /// of at most [`DISSECTION_LEAF`] groups take AMD. On a 3D grid this is the ordering with
+    /// O(n²) factor work against AMD's larger constant (docs/results/voxel-bench.md, orderings).
+    fn nested_dissection(&self) -> Result<Vec<usize>, CholeskyError> {
+        let groups = self.groups();
+        let mut order = Vec::with_capacity(groups);
+        let mut local = vec![usize::MAX; groups];
+        // A part is split into two parts to order and a separator to emit after both.
+        enum Task {
+            Part(Vec<usize>),
+            Emit(Vec<usize>),
+        }
+        let mut tasks = vec![Task::Part((0..groups).collect())];
+        while let Some(task) = tasks.pop() {
+            let vertices = match task {
+                Task::Emit(separator) => {
+                    order.extend(separator);
+                    continue;
+                }
+                Task::Part(vertices) => vertices,
+            };
+            if vertices.len() <= DISSECTION_LEAF {
+                order.extend(self.amd_of(&vertices, &mut local)?);
+                continue;
+            }
+            let (left, right, separator) = self.bisect(&vertices, &mut local)?;
+            if left.is_empty() || right.is_empty() {
+                // No useful cut (a clique or a tiny component): minimum degree for the rest.
+                order.extend(self.amd_of(&vertices, &mut local)?);
+                continue;
+            }
+            // Popped in reverse: left, then right, then the separator.
+            tasks.push(Task::Emit(separator));
+            tasks.push(Task::Part(right));
+            tasks.push(Task::Part(left));
+        }
+        debug_assert_eq!(order.len(), groups);
+        Ok(order)
+    }
+
+    /// The subgraph on `vertices` in METIS's CSR form (no self loops), with `local` mapping
+    /// group → index in `vertices` (reset by the caller).
+    fn subgraph(&self, vertices: &[usize], local: &mut [usize]) -> (Vec<metis::Idx>, Vec<metis::Idx>) {
+        for (i, &v) in vertices.iter().enumerate() {
+            local[v] = i;
+        }
+        let mut xadj = Vec::with_capacity(vertices.len() + 1);
+        let mut adjncy = Vec::new();
+        xadj.push(0);
+        for &v in vertices {
+            for &w in &self.row_idx[self.col_ptr[v]..self.col_ptr[v + 1]] {
+                if w != v && local[w] != usize::MAX {
+                    adjncy.push(local[w] as metis::Idx);
+                }
+            }
+            xadj.push(adjncy.len() as metis::Idx);
+        }
+        (xadj, adjncy)
+    }
+
+    /// METIS bisection of `vertices` into (left, right, vertex separator).
+    #[allow(clippy::type_complexity)]
+    fn bisect(
+        &self,
+        vertices: &[usize],
+        local: &mut [usize],
+    ) -> Result<(Vec<usize>, Vec<usize>, Vec<usize>), CholeskyError> {
+        let (xadj, adjncy) = self.subgraph(vertices, local);
+        let mut part = vec![0 as metis::Idx; vertices.len()];
+        if adjncy.is_empty() {
+            // No edges: any split is a dissection with an empty separator.
+            let half = vertices.len() / 2;
+            part[half..].fill(1);
+        } else {
+            metis::Graph::new(1, 2, &xadj, &adjncy)
+                .map_err(|e| CholeskyError::Setup(format!("METIS graph: {e:?}")))?
+                .part_recursive(&mut part)
+                .map_err(|e| CholeskyError::Setup(format!("METIS bisection: {e:?}")))?;
+        }
+        // End points of cut edges on each side; the smaller set is the separator.
+        let mut boundary = [Vec::new(), Vec::new()];
+        for i in 0..vertices.len() {
+            let side = part[i] as usize;
+            let cut = adjncy[xadj[i] as usize..xadj[i + 1] as usize].iter().any(|&j| part[j as usize] as usize != side);
+            if cut {
+                boundary[side].push(i);
+            }
+        }
+        let separator_side = if boundary[0].len() <= boundary[1].len() { 0 } else { 1 };
+        let mut in_separator = vec![false; vertices.len()];
+        for &i in &boundary[separator_side] {
+            in_separator[i] = true;
+        }
+        let (mut left, mut right, mut separator) = (Vec::new(), Vec::new(), Vec::new());
+        for (i, &v) in vertices.iter().enumerate() {
+            if in_separator[i] {
+                separator.push(v);
+            } else if part[i] == 0 {
+                left.push(v);
+            } else {
+                right.push(v);
+            }
+        }
+        for &v in vertices {
+            local[v] = usize::MAX;
+        }
+        Ok((left, right, separator))
+    }
+
+    /// AMD order of the subgraph on `vertices`, as groups.
+    fn amd_of(&self, vertices: &[usize], local: &mut [usize]) -> Result<Vec<usize>, CholeskyError> {
+        let (xadj, adjncy) = self.subgraph(vertices, local);
+        for &v in vertices {
+            local[v] = usize::MAX;
+        }
+        let n = vertices.len();
+        let col_ptr: Vec<usize> = xadj.iter().map(|&x| x as usize).collect();
+        let row_idx: Vec<usize> = adjncy.iter().map(|&x| x as usize).collect();
+        let graph = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
+        let (mut order, mut inverse) = (vec![0usize; n], vec![0usize; n]);
+        let mut memory = MemBuffer::try_new(amd::order_scratch::<usize>(n, row_idx.len()))
+            .map_err(|_| CholeskyError::Setup("out of memory for the AMD workspace".into()))?;
+        amd::order(&mut order, &mut inverse, graph, amd::Control::default(), MemStack::new(&mut memory))
+            .map_err(|e| CholeskyError::Setup(format!("AMD ordering: {e:?}")))?;
+        Ok(order.into_iter().map(|i| vertices[i]).collect())
+    }
+
     /// Approximate minimum degree order of the groups.
     fn amd(&self) -> Result<Vec<usize>, CholeskyError> {
         let groups = self.groups();
@@ -634,6 +834,49 @@ mod tests {
             })
             .collect();
         group_laplacian_system((n * n * n) as usize, &cubes, 0.5)
+    }
+
+    /// A box grid of `nx × ny × nz` nodes coupled by its cubes, values as in
+    /// [`symmetric_grid_system`].
+    fn box_grid_system(nx: u32, ny: u32, nz: u32) -> (AssemblyPattern, Vec<Real>) {
+        let node = |x: u32, y: u32, z: u32| x + nx * (y + ny * z);
+        let cubes: Vec<[u32; 8]> = (0..nz - 1)
+            .flat_map(|z| (0..ny - 1).flat_map(move |y| (0..nx - 1).map(move |x| (x, y, z))))
+            .map(|(x, y, z)| {
+                [0, 1, 2, 3, 4, 5, 6, 7].map(|c| node(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)))
+            })
+            .collect();
+        group_laplacian_system((nx * ny * nz) as usize, &cubes, 0.5)
+    }
+
+    /// Nested dissection is a valid order that solves to round-off; on an elongated box grid
+    /// (the cantilever's shape, 4:1:1) its factor needs fewer operations than AMD's, as the
+    /// theory of separators says for 3D grids; `Auto` keeps AMD below its threshold.
+    #[test]
+    fn nested_dissection_solves_and_beats_amd_on_a_box_grid() {
+        let (pattern, values) = box_grid_system(41, 11, 11);
+        let graph = QuotientGraph::new(&pattern);
+        let order = graph.nested_dissection().unwrap();
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..graph.groups()).collect::<Vec<_>>(), "a permutation of the groups");
+        let mut flops = Vec::new();
+        for ordering in [FillOrdering::Amd, FillOrdering::NestedDissection] {
+            let mut cholesky = SparseCholesky::with_ordering(&pattern, ordering).unwrap();
+            assert_eq!(cholesky.ordering(), ordering);
+            cholesky.factorize(&values).unwrap();
+            let truth: Vec<Real> = (0..pattern.dim()).map(|i| (i as Real * 0.37).sin()).collect();
+            let mut b = vec![0.0; pattern.dim()];
+            pattern.mul_vec(&values, &truth, &mut b);
+            cholesky.solve_in_place(&mut b);
+            let error = b.iter().zip(&truth).map(|(a, t)| (a - t).abs()).fold(0.0, Real::max);
+            assert!(error < 1e-9, "{ordering:?}: max error {error}");
+            flops.push(cholesky.factor_flops());
+        }
+        println!("factor flops: AMD {:.3e}, nested dissection {:.3e}", flops[0], flops[1]);
+        assert!(flops[1] < 0.9 * flops[0], "nested dissection {:.3e} against AMD {:.3e}", flops[1], flops[0]);
+        assert!(flops[0] < AUTO_DISSECTION_FLOPS);
+        assert_eq!(SparseCholesky::new(&pattern).unwrap().ordering(), FillOrdering::Amd, "below the threshold");
     }
 
     /// [`symmetric_grid_system`] with every entry above the diagonal then nudged: no longer

@@ -19,7 +19,7 @@ pub mod scatter;
 
 pub use assembly::AssemblyPattern;
 pub use blocks::{BlockRanks, BlockRef, BlockSet, BlockSetBuilder, BlockSetError, MAX_BLOCK_NODES};
-pub use cholesky::{CholeskyError, SparseCholesky};
+pub use cholesky::{AUTO_DISSECTION_FLOPS, CholeskyError, FillOrdering, SparseCholesky};
 pub use discretization::{
     CoarseSpace, CutSurface, Cuttable, Discretization, DofRemap, EmbeddedSurface, FieldSample, Fracturable, FrameRemap,
     Piece, Refinable, RotationStats, TopologyChange, TopologyError,
