@@ -105,12 +105,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let lowest_z = |x: &[Real]| (0..contact.len()).map(|i| contact.point(x, i).z).fold(Real::MAX, Real::min);
     let mut rows = vec![(lowest_z(integrator.positions()), integrator.energies(&mesh).total_energy(), 0.0)];
     let (mut iterations, mut max_iterations, mut solve, mut total) = (0, 0, 0.0, 0.0);
+    let mut phases = [0.0; 6];
     for _ in 0..args.steps {
         let report = integrator.step(&mesh)?;
         iterations += report.iterations;
         max_iterations = max_iterations.max(report.iterations);
         solve += report.seconds.solve;
         total += report.seconds.total();
+        let p = &report.seconds;
+        for (sum, value) in
+            phases.iter_mut().zip([p.rotations, p.assembly, p.solve, p.contact, p.contact_forces, p.rest])
+        {
+            *sum += value;
+        }
         rows.push((lowest_z(integrator.positions()), report.total_energy(), report.kinetic_energy));
         if std::env::var_os("VERBOSE").is_some() {
             println!(
@@ -155,6 +162,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         1e3 * solve / steps,
         1e3 * total / steps,
         steps / total
+    );
+    println!(
+        "per step [ms]: rotations {:.2}, assembly {:.2}, solve {:.2}, contact {:.2}, contact forces {:.2}, rest {:.2}",
+        1e3 * phases[0] / steps,
+        1e3 * phases[1] / steps,
+        1e3 * phases[2] / steps,
+        1e3 * phases[3] / steps,
+        1e3 * phases[4] / steps,
+        1e3 * phases[5] / steps
     );
     if let Some(path) = &args.csv {
         let text: String = rows.iter().map(|r| format!("{:.9e},{:.9e},{:.9e}\n", r.0, r.1, r.2)).collect();

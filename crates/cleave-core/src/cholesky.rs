@@ -221,7 +221,7 @@ fn factor_flops(symbolic: &SymbolicCholesky<usize>) -> f64 {
     }
 }
 
-/// Parts of at most this many groups are ordered by AMD instead of dissected further.
+/// Parts of at most this many nodes are ordered by AMD instead of dissected further.
 const DISSECTION_LEAF: usize = 256;
 
 /// Factor work above which [`FillOrdering::Auto`] also tries nested dissection (about 0.5 s of
@@ -230,6 +230,13 @@ const DISSECTION_LEAF: usize = 256;
 /// coarse space) factors with less work under AMD (docs/results/voxel-bench.md, orderings).
 pub const AUTO_DISSECTION_FLOPS: f64 = 1e10;
 
+/// Nodes per quotient-graph group below which [`FillOrdering::Auto`] tries nested dissection.
+/// DG's basis functions of one element form one group (4 or 10 nodes); on its grids AMD needed
+/// 0.6× the operations of nested dissection in every measured case, so the second ordering
+/// (0.3–0.7 s on Table 1's quadratic grids) would only be paid for. Nodal meshes have about one
+/// node per group.
+pub const AUTO_DISSECTION_GROUP_SIZE: f64 = 2.0;
+
 /// The fill-reducing ordering of a [`SparseCholesky`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum FillOrdering {
@@ -237,7 +244,8 @@ pub enum FillOrdering {
     Amd,
     /// Nested dissection of the node graph by METIS bisections, AMD on small parts.
     NestedDissection,
-    /// AMD, and for factors above [`AUTO_DISSECTION_FLOPS`] also nested dissection, keeping the
+    /// AMD, and for factors above [`AUTO_DISSECTION_FLOPS`] of nodal meshes (fewer than
+    /// [`AUTO_DISSECTION_GROUP_SIZE`] nodes per group) also nested dissection, keeping the
     /// ordering whose factor takes fewer operations.
     #[default]
     Auto,
@@ -299,9 +307,13 @@ impl SparseCholesky {
             || PermutedLower::new(pattern, &new_node, &old_node),
         );
         let mut symbolic = symbolic?;
-        if fill_ordering == FillOrdering::Auto && factor_flops(&symbolic) > AUTO_DISSECTION_FLOPS {
-            // A large factor: nested dissection may need far less work (the voxel cantilever:
-            // half), or more (DG's Table 1 grids: 1.5×); keep the ordering with fewer flops.
+        let nodes_per_group = pattern.num_nodes() as f64 / graph.groups().max(1) as f64;
+        if fill_ordering == FillOrdering::Auto
+            && factor_flops(&symbolic) > AUTO_DISSECTION_FLOPS
+            && nodes_per_group < AUTO_DISSECTION_GROUP_SIZE
+        {
+            // A large factor of a nodal mesh: nested dissection may need far less work (the
+            // voxel cantilever at n = 16: half); keep the ordering with fewer operations.
             let (nd_ordering, nd_new, nd_old) = node_ordering(pattern, &graph, FillOrdering::NestedDissection)?;
             let nd_symbolic = symbolic_of(pattern, &nd_new, &nd_old)?;
             if factor_flops(&nd_symbolic) < factor_flops(&symbolic) {
@@ -573,7 +585,7 @@ impl QuotientGraph {
     /// recursive bisection; the safe binding has no `NodeND`, and the workspace forbids the FFI),
     /// each edge separator becomes a vertex separator (the cut's end points on the side that has
     /// fewer of them), the two halves are ordered recursively before their separator, and parts
-    /// of at most [`DISSECTION_LEAF`] groups take AMD. On a 3D grid this is the ordering with
+    /// of at most [`DISSECTION_LEAF`] nodes take AMD. Groups weigh their member nodes. On a 3D grid this is the ordering with
     /// O(n²) factor work against AMD's larger constant (docs/results/voxel-bench.md, orderings).
     fn nested_dissection(&self) -> Result<Vec<usize>, CholeskyError> {
         let groups = self.groups();
@@ -593,7 +605,8 @@ impl QuotientGraph {
                 }
                 Task::Part(vertices) => vertices,
             };
-            if vertices.len() <= DISSECTION_LEAF {
+            let weight: usize = vertices.iter().map(|&g| self.members_offsets[g + 1] - self.members_offsets[g]).sum();
+            if weight <= DISSECTION_LEAF {
                 order.extend(self.amd_of(&vertices, &mut local)?);
                 continue;
             }
@@ -640,6 +653,10 @@ impl QuotientGraph {
         local: &mut [usize],
     ) -> Result<(Vec<usize>, Vec<usize>, Vec<usize>), CholeskyError> {
         let (xadj, adjncy) = self.subgraph(vertices, local);
+        // Groups stand for their member nodes: balance nodes, not groups (a DG element's
+        // basis functions are one group).
+        let weights: Vec<metis::Idx> =
+            vertices.iter().map(|&g| (self.members_offsets[g + 1] - self.members_offsets[g]) as metis::Idx).collect();
         let mut part = vec![0 as metis::Idx; vertices.len()];
         if adjncy.is_empty() {
             // No edges: any split is a dissection with an empty separator.
@@ -648,6 +665,7 @@ impl QuotientGraph {
         } else {
             metis::Graph::new(1, 2, &xadj, &adjncy)
                 .map_err(|e| CholeskyError::Setup(format!("METIS graph: {e:?}")))?
+                .set_vwgt(&weights)
                 .part_recursive(&mut part)
                 .map_err(|e| CholeskyError::Setup(format!("METIS bisection: {e:?}")))?;
         }
@@ -877,6 +895,23 @@ mod tests {
         assert!(flops[1] < 0.9 * flops[0], "nested dissection {:.3e} against AMD {:.3e}", flops[1], flops[0]);
         assert!(flops[0] < AUTO_DISSECTION_FLOPS);
         assert_eq!(SparseCholesky::new(&pattern).unwrap().ordering(), FillOrdering::Amd, "below the threshold");
+    }
+
+    /// Above the threshold `Auto` compares both and keeps nested dissection on the cantilever's
+    /// grid (64 × 16 × 16 cubes), whose factor it halves (docs/results/voxel-bench.md, orderings).
+    #[test]
+    fn auto_keeps_nested_dissection_where_it_needs_fewer_operations() {
+        let (pattern, _) = box_grid_system(65, 17, 17);
+        let auto = SparseCholesky::new(&pattern).unwrap();
+        let amd = SparseCholesky::with_ordering(&pattern, FillOrdering::Amd).unwrap();
+        assert!(amd.factor_flops() > AUTO_DISSECTION_FLOPS);
+        assert_eq!(auto.ordering(), FillOrdering::NestedDissection);
+        assert!(
+            auto.factor_flops() < 0.7 * amd.factor_flops(),
+            "{:.3e} against {:.3e}",
+            auto.factor_flops(),
+            amd.factor_flops()
+        );
     }
 
     /// [`symmetric_grid_system`] with every entry above the diagonal then nudged: no longer

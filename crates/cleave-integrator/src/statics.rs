@@ -1,10 +1,14 @@
 //! The static linear solve `K u = f` (no warping) with prescribed displacements, for convergence
-//! studies: assemble, eliminate the prescribed DOFs into the right-hand side, factorize, solve.
+//! studies: assemble, eliminate the prescribed DOFs into the right-hand side, factorize, solve;
+//! and the same solve matrix-free by two-level preconditioned CG (`IterativeStatics`).
 
+use crate::cg::CgWorkspace;
 use crate::constraints::Constraints;
 use crate::error::StepErrorKind;
 use crate::system::AssembledSystem;
-use cleave_core::{Discretization, Matrix3, Real};
+use crate::two_level::TwoLevel;
+use cleave_core::{Discretization, Matrix3, Real, Vector3};
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// A static solution and what it cost.
@@ -85,4 +89,147 @@ pub fn solve_static(
         seconds_assemble,
         seconds_solve,
     })
+}
+
+/// A static solution by preconditioned CG on the backend's matrix-free stiffness action.
+#[derive(Clone, Debug)]
+pub struct IterativeStaticSolution {
+    /// Displacement DOFs `u`.
+    pub displacement: Vec<Real>,
+    /// CG iterations.
+    pub iterations: usize,
+    /// The relative residual reached.
+    pub relative_residual: Real,
+    /// Whether it reached the tolerance within the iteration limit.
+    pub converged: bool,
+    /// Seconds of this tolerance's CG iterations (the set-up not included).
+    pub seconds_solve: Real,
+}
+
+/// The matrix-free static path: the preconditioner, built once, and the solves of a tolerance
+/// sweep (`compare`'s time-to-accuracy column, docs/results/voxel-bench.md, statics).
+pub struct IterativeStatics<'a> {
+    discretization: &'a dyn Discretization,
+    pinned: Vec<bool>,
+    /// `g` on prescribed DOFs, zero elsewhere.
+    prescribed_field: Vec<Real>,
+    /// `Z (f − K g)`.
+    rhs: Vec<Real>,
+    block_inverses: Vec<Matrix3<Real>>,
+    two_level: Option<TwoLevel>,
+    cg: CgWorkspace,
+    identity: Vec<Matrix3<Real>>,
+    /// Seconds spent building the preconditioner (block-Jacobi inverses, coarse operator and its
+    /// factorization).
+    pub seconds_setup: Real,
+}
+
+impl<'a> IterativeStatics<'a> {
+    /// The block-Jacobi inverses of `K` and, when the backend offers a coarse space, the
+    /// factorized Galerkin coarse operator `Pᵀ Z K Z P` (the integrator's two-level
+    /// preconditioner with no mass term).
+    pub fn new(
+        discretization: &'a dyn Discretization,
+        load: &[Real],
+        prescribed: &[(usize, Real)],
+    ) -> Result<Self, StepErrorKind> {
+        let n = 3 * discretization.num_nodes();
+        if load.len() != n {
+            return Err(StepErrorKind::LoadLength { what: "load", len: load.len(), dofs: n });
+        }
+        if let Some(&(d, _)) = prescribed.iter().find(|(d, _)| *d >= n) {
+            return Err(StepErrorKind::DofOutOfRange { what: "prescribed", dof: d, dofs: n });
+        }
+        let clock = Instant::now();
+        let mut pinned = vec![false; n];
+        let mut prescribed_field = vec![0.0; n];
+        for &(d, value) in prescribed {
+            pinned[d] = true;
+            prescribed_field[d] = value;
+        }
+        let identity = vec![Matrix3::identity(); discretization.num_frames()];
+        let mut rhs = load.to_vec();
+        if prescribed.iter().any(|&(_, value)| value != 0.0) {
+            let mut kg = vec![0.0; n];
+            discretization.add_stiffness_action(&identity, &prescribed_field, 1.0, &mut kg);
+            rhs.iter_mut().zip(&kg).for_each(|(r, kg)| *r -= kg);
+        }
+        rhs.iter_mut().zip(&pinned).filter(|(_, p)| **p).for_each(|(r, _)| *r = 0.0);
+        let mut block_inverses = vec![Matrix3::zeros(); discretization.num_nodes()];
+        discretization.blocks().add_diagonal_blocks(&identity, 1.0, &mut block_inverses);
+        block_inverses.par_iter_mut().enumerate().for_each(|(node, b)| {
+            for a in 0..3 {
+                if pinned[3 * node + a] {
+                    for c in 0..3 {
+                        b[(a, c)] = 0.0;
+                        b[(c, a)] = 0.0;
+                    }
+                    b[(a, a)] = 1.0;
+                }
+            }
+            *b = b
+                .try_inverse()
+                .unwrap_or_else(|| Matrix3::from_diagonal(&b.diagonal().map(|d| if d != 0.0 { 1.0 / d } else { 1.0 })));
+        });
+        let two_level = match discretization.coarse_space() {
+            Some(space) => Some(TwoLevel::new(discretization, space, &pinned, None, 0.0, 1.0, 0.0)?),
+            None => None,
+        };
+        Ok(Self {
+            discretization,
+            pinned,
+            prescribed_field,
+            rhs,
+            block_inverses,
+            two_level,
+            cg: CgWorkspace::default(),
+            identity,
+            seconds_setup: clock.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// Whether the backend's coarse space is in the preconditioner.
+    pub fn is_two_level(&self) -> bool {
+        self.two_level.is_some()
+    }
+
+    /// Solves from zero to relative residual `tolerance` (at most `max_iterations`).
+    pub fn solve(&mut self, tolerance: Real, max_iterations: usize) -> IterativeStaticSolution {
+        let clock = Instant::now();
+        let Self { discretization, pinned, rhs, block_inverses, two_level, cg, identity, .. } = self;
+        let mut x = vec![0.0; rhs.len()];
+        let outcome = cg.solve(
+            |p, out| {
+                out.fill(0.0);
+                discretization.add_stiffness_action(identity, p, 1.0, out);
+                for ((o, &pin), &p) in out.iter_mut().zip(pinned.iter()).zip(p) {
+                    if pin {
+                        *o = p;
+                    }
+                }
+            },
+            |r, z| {
+                z.par_chunks_mut(3).zip(r.par_chunks(3)).zip(&*block_inverses).for_each(|((z, r), m)| {
+                    let y = m * Vector3::new(r[0], r[1], r[2]);
+                    z.copy_from_slice(y.as_slice());
+                });
+                if let Some(two_level) = two_level.as_mut() {
+                    two_level.add_correction(r, z);
+                }
+            },
+            rhs,
+            0.0,
+            &mut x,
+            tolerance,
+            max_iterations,
+        );
+        x.iter_mut().zip(&self.prescribed_field).for_each(|(x, g)| *x += g);
+        IterativeStaticSolution {
+            displacement: x,
+            iterations: outcome.iterations,
+            relative_residual: outcome.relative_residual,
+            converged: outcome.converged,
+            seconds_solve: clock.elapsed().as_secs_f64(),
+        }
+    }
 }

@@ -423,14 +423,66 @@ pub struct Row {
     pub momentum_before_cut: Option<Real>,
     /// |p_after − p_before| across the cut [kg m/s] (cut dynamic).
     pub momentum_change: Option<Real>,
+    /// The static cantilever solved again matrix-free by two-level CG (backends with a coarse
+    /// space), one point per tolerance of [`ITERATIVE_TOLERANCES`] until the tip agrees with the
+    /// direct solve to 1e-6: the time-to-accuracy column picks the first point whose solver error
+    /// is at most 1 % of the discretization error.
+    pub iterative: Vec<SweepPoint>,
+}
+
+/// One tolerance of the matrix-free static solve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SweepPoint {
+    /// CG's relative residual tolerance.
+    pub tolerance: Real,
+    /// Wall clock from nothing to the solution: building the discretization and load, the
+    /// preconditioner, and this tolerance's iterations [s].
+    pub seconds: Real,
+    /// CG iterations.
+    pub iterations: usize,
+    /// Mean u_z over the tip face [m].
+    pub tip_uz_avg: Real,
+}
+
+/// Tolerances of the matrix-free static sweep.
+pub const ITERATIVE_TOLERANCES: [Real; 8] = [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8];
+
+impl SweepPoint {
+    fn to_cell(points: &[SweepPoint]) -> String {
+        points
+            .iter()
+            .map(|p| format!("{:e}:{:e}:{}:{:e}", p.tolerance, p.seconds, p.iterations, p.tip_uz_avg))
+            .collect::<Vec<_>>()
+            .join(";")
+    }
+
+    fn from_cell(cell: &str) -> Result<Vec<SweepPoint>, String> {
+        cell.split(';')
+            .filter(|p| !p.is_empty())
+            .map(|p| {
+                let f: Vec<&str> = p.split(':').collect();
+                let bad = || format!("iterative sweep point {p:?} is not tolerance:seconds:iterations:tip");
+                let [tolerance, seconds, iterations, tip] = f.as_slice() else { return Err(bad()) };
+                Ok(SweepPoint {
+                    tolerance: tolerance.parse().map_err(|_| bad())?,
+                    seconds: seconds.parse().map_err(|_| bad())?,
+                    iterations: iterations.parse().map_err(|_| bad())?,
+                    tip_uz_avg: tip.parse().map_err(|_| bad())?,
+                })
+            })
+            .collect()
+    }
 }
 
 /// The CSV header, in column order.
-pub const CSV_HEADER: &str = "problem,backend,variant,n,dofs,elements,nnz,l2_rel_error,h1_rel_error,tip_uz_avg,tip_uz_point,strain_energy,seconds_setup,seconds_assemble,seconds_solve,seconds_total,peak_rss_mb,repetitions,steps,seconds_rotations,crack_opening,energy_before_cut,energy_after_cut,energy_max_after_cut,momentum_before_cut,momentum_change";
+pub const CSV_HEADER: &str = "problem,backend,variant,n,dofs,elements,nnz,l2_rel_error,h1_rel_error,tip_uz_avg,tip_uz_point,strain_energy,seconds_setup,seconds_assemble,seconds_solve,seconds_total,peak_rss_mb,repetitions,steps,seconds_rotations,crack_opening,energy_before_cut,energy_after_cut,energy_max_after_cut,momentum_before_cut,momentum_change,iterative_sweep";
 
 /// Columns of files written before the cut problems existed: [`CSV_HEADER`]'s first 20. Such
 /// files are still read (the cut columns empty), so their rows are kept.
 const CSV_COLUMNS_BEFORE_CUTS: usize = 20;
+
+/// Columns of files written before the iterative sweep (its column then reads as empty).
+const CSV_COLUMNS_BEFORE_SWEEP: usize = 26;
 
 fn cell<T: fmt::Display>(value: Option<T>) -> String {
     value.map_or_else(String::new, |v| v.to_string())
@@ -477,6 +529,7 @@ impl Row {
             real_cell(self.energy_max_after_cut),
             real_cell(self.momentum_before_cut),
             real_cell(self.momentum_change),
+            SweepPoint::to_cell(&self.iterative),
         ]
         .join(",")
     }
@@ -485,7 +538,7 @@ impl Row {
     pub fn from_csv(line: &str) -> Result<Row, String> {
         let mut f: Vec<&str> = line.trim_end().split(',').collect();
         let columns = CSV_HEADER.split(',').count();
-        if f.len() == CSV_COLUMNS_BEFORE_CUTS {
+        if f.len() == CSV_COLUMNS_BEFORE_CUTS || f.len() == CSV_COLUMNS_BEFORE_SWEEP {
             f.resize(columns, "");
         }
         if f.len() != columns {
@@ -528,6 +581,7 @@ impl Row {
             energy_max_after_cut: opt_real(23)?,
             momentum_before_cut: opt_real(24)?,
             momentum_change: opt_real(25)?,
+            iterative: SweepPoint::from_cell(f[26]).map_err(|e| format!("column iterative_sweep: {e}"))?,
         })
     }
 }
@@ -536,8 +590,12 @@ impl Row {
 pub fn parse_csv(text: &str) -> Result<Vec<Row>, String> {
     let mut lines = text.lines();
     let before_cuts = CSV_HEADER.split(',').take(CSV_COLUMNS_BEFORE_CUTS).collect::<Vec<_>>().join(",");
+    let before_sweep = CSV_HEADER.split(',').take(CSV_COLUMNS_BEFORE_SWEEP).collect::<Vec<_>>().join(",");
     match lines.next() {
-        Some(header) if header.trim_end() == CSV_HEADER || header.trim_end() == before_cuts => {}
+        Some(header)
+            if header.trim_end() == CSV_HEADER
+                || header.trim_end() == before_cuts
+                || header.trim_end() == before_sweep => {}
         other => return Err(format!("header {other:?} is not {CSV_HEADER:?}")),
     }
     lines.filter(|l| !l.trim().is_empty()).map(Row::from_csv).collect()
@@ -645,6 +703,9 @@ pub fn run_problem(backend: &dyn CompareBackend, variant: &str, problem: Problem
             fill_static(&mut row, &built, &load, &solution, seconds_build);
             row.tip_uz_avg = Some(average);
             row.tip_uz_point = Some(point);
+            if problem == Problem::Cantilever && d.coarse_space().is_some() {
+                row.iterative = iterative_sweep(d, &load, &built.prescribed, n, seconds_build, average)?;
+            }
             if problem == Problem::CutCantilever {
                 row.crack_opening = Some(crack_opening(d, &solution.displacement, grid.h)?);
             }
@@ -652,6 +713,46 @@ pub fn run_problem(backend: &dyn CompareBackend, variant: &str, problem: Problem
         Problem::Dynamic | Problem::CutDynamic => run_dynamic(backend, variant, &grid, &mut row)?,
     }
     Ok(row)
+}
+
+/// The static solve again by matrix-free two-level CG at each of [`ITERATIVE_TOLERANCES`], from
+/// zero, until its tip agrees with the direct solve's `direct_tip` to 1e-6 relative.
+fn iterative_sweep(
+    d: &dyn Discretization,
+    load: &[Real],
+    prescribed: &[(usize, Real)],
+    n: usize,
+    seconds_build: Real,
+    direct_tip: Real,
+) -> Result<Vec<SweepPoint>, RunError> {
+    let mut statics = cleave_integrator::IterativeStatics::new(d, load, prescribed)?;
+    let mut points = Vec::new();
+    for tolerance in ITERATIVE_TOLERANCES {
+        let solution = statics.solve(tolerance, 100 * d.num_nodes().max(100));
+        if !solution.converged {
+            break;
+        }
+        let (tip, _) = tip_values(d, &solution.displacement, n)?;
+        points.push(SweepPoint {
+            tolerance,
+            seconds: seconds_build + statics.seconds_setup + solution.seconds_solve,
+            iterations: solution.iterations,
+            tip_uz_avg: tip,
+        });
+        if (tip - direct_tip).abs() <= 1e-6 * direct_tip.abs() {
+            break;
+        }
+    }
+    Ok(points)
+}
+
+/// The first point of a sweep whose solver error `|tip − direct|` is at most 1 % of the
+/// discretization error `|direct − reference|`: the matrix-free path's time to the direct
+/// solve's accuracy.
+pub fn time_to_accuracy(row: &Row, reference_tip: Real) -> Option<SweepPoint> {
+    let direct = row.tip_uz_avg?;
+    let discretization_error = (direct - reference_tip).abs();
+    row.iterative.iter().copied().find(|p| (p.tip_uz_avg - direct).abs() <= 0.01 * discretization_error)
 }
 
 /// u_x(2⁺, 0.5, 1) − u_x(2⁻, 0.5, 1) by embedding ([`crack::opening_points`]).
