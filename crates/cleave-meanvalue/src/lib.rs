@@ -1,0 +1,21 @@
+//! cleave-meanvalue: the finite element method on convex polyhedra of Wicke, Botsch and Gross,
+//! "A finite element method on convex polyhedra" (Eurographics 2007), with 3D mean value
+//! coordinates as shape functions. This far it holds the element and its shape functions: a
+//! validated convex polyhedron that splits by planes (`polyhedron`), and the coordinates with
+//! their analytic gradients, robust up to and on the boundary (`coordinates`). The backend
+//! (mesh, integration, corotated elements, cutting) is issue 36's remaining work.
+//!
+//! ```
+//! # use cleave_meanvalue::{ConvexPolyhedron, Workspace, mean_value_coordinates};
+//! # use nalgebra::Point3;
+//! let cube = ConvexPolyhedron::cuboid(Point3::origin(), Point3::new(1.0, 1.0, 1.0)).unwrap();
+//! let mut lambda = [0.0; 8];
+//! mean_value_coordinates(&cube, &Point3::new(0.5, 0.5, 0.5), &mut lambda, None, &mut Workspace::default());
+//! assert!(lambda.iter().all(|l| (l - 0.125).abs() < 1e-15));
+//! ```
+
+pub mod coordinates;
+pub mod polyhedron;
+
+pub use coordinates::{BOUNDARY_TOLERANCE, GRADIENT_INSET, Workspace, mean_value_coordinates};
+pub use polyhedron::{ConvexPolyhedron, GEOMETRY_TOLERANCE, PolyhedronError};
