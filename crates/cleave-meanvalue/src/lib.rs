@@ -1,9 +1,10 @@
 //! cleave-meanvalue: the finite element method on convex polyhedra of Wicke, Botsch and Gross,
 //! "A finite element method on convex polyhedra" (Eurographics 2007), with 3D mean value
-//! coordinates as shape functions. This far it holds the element and its shape functions: a
-//! validated convex polyhedron that splits by planes (`polyhedron`), and the coordinates with
-//! their analytic gradients, robust up to and on the boundary (`coordinates`). The backend
-//! (mesh, integration, corotated elements, cutting) is issue 36's remaining work.
+//! coordinates as shape functions: a validated convex polyhedron that splits by planes
+//! (`polyhedron`), the coordinates with their analytic gradients, robust up to and on the
+//! boundary (`coordinates`), an element's integrals with the gradient correction that makes the
+//! patch test exact (`element`), and a corotated mesh behind `Discretization` (`mesh`). Not yet:
+//! a mesher for closed surfaces, cutting, registration as a backend (issue 36).
 //!
 //! ```
 //! # use cleave_meanvalue::{ConvexPolyhedron, Workspace, mean_value_coordinates};
@@ -15,7 +16,11 @@
 //! ```
 
 pub mod coordinates;
+pub mod element;
+pub mod mesh;
 pub mod polyhedron;
 
 pub use coordinates::{BOUNDARY_TOLERANCE, GRADIENT_INSET, Workspace, mean_value_coordinates};
+pub use element::{ElementIntegrals, quadrature};
+pub use mesh::{DEFAULT_REFINEMENT, MeanValueError, MeanValueMesh};
 pub use polyhedron::{ConvexPolyhedron, GEOMETRY_TOLERANCE, PolyhedronError};
