@@ -259,6 +259,37 @@ impl MeanValueMesh {
         (&self.elements[e].shape, &self.elements[e].nodes)
     }
 
+    /// The boundary as triangles over the nodes, outward oriented: every element face no other
+    /// element shares (the same nodes), fanned from its first node.
+    pub fn boundary_triangles(&self) -> Vec<[u32; 3]> {
+        let mut count: HashMap<Vec<u32>, usize> = HashMap::new();
+        let global = |e: &Element, face: &[usize]| face.iter().map(|&i| e.nodes[i]).collect::<Vec<u32>>();
+        for element in &self.elements {
+            for face in element.shape.faces() {
+                let mut key = global(element, face);
+                key.sort_unstable();
+                *count.entry(key).or_insert(0) += 1;
+            }
+        }
+        let mut triangles = Vec::new();
+        for element in &self.elements {
+            for face in element.shape.faces() {
+                let nodes = global(element, face);
+                let mut key = nodes.clone();
+                key.sort_unstable();
+                if count[&key] == 1 {
+                    triangles.extend((1..nodes.len() - 1).map(|j| [nodes[0], nodes[j], nodes[j + 1]]));
+                }
+            }
+        }
+        triangles
+    }
+
+    /// The characteristic element size: the mean element diameter.
+    pub fn element_size(&self) -> Real {
+        self.elements.iter().map(|e| e.shape.diameter()).sum::<Real>() / self.elements.len().max(1) as Real
+    }
+
     /// The mean deformation gradient of element `e` at positions `x`.
     fn gradient(&self, e: usize, x: &[Real]) -> Matrix3<Real> {
         let element = &self.elements[e];

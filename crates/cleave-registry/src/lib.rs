@@ -6,17 +6,19 @@
 
 pub mod backend;
 mod dg;
+mod meanvalue;
 mod virtualnode;
 mod voxel;
 
 pub use backend::{Backend, BackendError, BuiltSolid, Capabilities, Region, ResolvedPins, Shape, SolidRequest};
 pub use dg::DgBackend;
+pub use meanvalue::MeanValueBackend;
 pub use virtualnode::{SLIVER_OFFSET, VirtualNodeBackend, sliver_beam};
 pub use voxel::VoxelBackend;
 
 /// Every registered backend, in report order.
 pub fn registered() -> Vec<Box<dyn Backend>> {
-    vec![Box::new(VoxelBackend), Box::new(DgBackend), Box::new(VirtualNodeBackend)]
+    vec![Box::new(VoxelBackend), Box::new(DgBackend), Box::new(VirtualNodeBackend), Box::new(MeanValueBackend)]
 }
 
 /// The registered backend called `name`.

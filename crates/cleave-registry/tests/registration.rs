@@ -11,6 +11,7 @@ fn settings(name: &str) -> &'static str {
         "voxel" => "(cell_size: 0.5)",
         "dg" => "(cell_size: 0.5)",
         "virtualnode" => "(cell_size: 0.5)",
+        "meanvalue" => "(cell_size: 0.5)",
         other => panic!("give the registration test scene settings for the new backend {other:?}"),
     }
 }
