@@ -167,20 +167,24 @@ fn scene_run(path: &Path) -> Result<(f64, f64, f64, f64, f64)> {
     ))
 }
 
+/// The registered voxel backend's box `grid` of `material`, pinned nowhere.
+fn voxel_box(grid: &BoxGrid, material: cleave_core::Material) -> Result<cleave_testkit::compare::BuiltProblem> {
+    let voxel =
+        registered().into_iter().find(|b| b.name() == "voxel").context("the voxel backend is not registered")?;
+    let nowhere = |_: &Point3<Real>| false;
+    let zero = |_: &Point3<Real>| Vector3::zeros();
+    voxel
+        .build_box("trilinear", &material, grid, &DirichletSpec { region: &nowhere, value: &zero })
+        .map_err(|e| anyhow::anyhow!("building the voxel box: {e}"))
+}
+
 /// The voxel stiffness action `out += K dx` with the corotated kernel on 22 × 22 × 21 cubes
 /// (10,164, the voxel bunny's size) at identity rotations, best of five runs of 50 products:
 /// GFLOP/s counting 1,392 operations a cube (the 24 × 24 product, 1,152, and rotating the eight
 /// corners' 3-vectors in and out, 240).
 fn stiffness_gflops() -> Result<f64> {
-    let voxel =
-        registered().into_iter().find(|b| b.name() == "voxel").context("the voxel backend is not registered")?;
     let grid = BoxGrid { origin: Point3::origin(), h: 0.01, dims: [22, 22, 21] };
-    let material = cleave_core::Material::new(2e5, 0.3, 1000.0)?;
-    let nowhere = |_: &Point3<Real>| false;
-    let zero = |_: &Point3<Real>| Vector3::zeros();
-    let built = voxel
-        .build_box("trilinear", &material, &grid, &DirichletSpec { region: &nowhere, value: &zero })
-        .map_err(|e| anyhow::anyhow!("building the voxel box: {e}"))?;
+    let built = voxel_box(&grid, cleave_core::Material::new(2e5, 0.3, 1000.0)?)?;
     let d = built.discretization.as_ref();
     let rotations = vec![Matrix3::identity(); d.num_frames()];
     let dx: Vec<Real> = (0..3 * d.num_nodes()).map(|i| (i as Real * 0.37).sin()).collect();
@@ -221,16 +225,9 @@ fn memory_per_voxel() -> Result<f64> {
 /// set (`VmHWM`, everything included) per voxel, printed as `kb_per_voxel X`.
 pub fn memory_child(edge: usize) -> Result<()> {
     use cleave_integrator::{Constraints, Integrator, PlaneCollider, Preconditioner, Settings, Solver};
-    let voxel =
-        registered().into_iter().find(|b| b.name() == "voxel").context("the voxel backend is not registered")?;
     let h = 0.2 / edge as Real;
     let grid = BoxGrid { origin: Point3::new(0.0, 0.0, 0.01), h, dims: [edge, edge, edge] };
-    let material = cleave_core::Material::new(2e5, 0.3, 1000.0)?.with_damping(0.0, 0.01)?;
-    let nowhere = |_: &Point3<Real>| false;
-    let zero = |_: &Point3<Real>| Vector3::zeros();
-    let built = voxel
-        .build_box("trilinear", &material, &grid, &DirichletSpec { region: &nowhere, value: &zero })
-        .map_err(|e| anyhow::anyhow!("building the voxel box: {e}"))?;
+    let built = voxel_box(&grid, cleave_core::Material::new(2e5, 0.3, 1000.0)?.with_damping(0.0, 0.01)?)?;
     let mesh = built.discretization.as_ref();
     let bottom: Vec<Point3<Real>> =
         mesh.rest_dofs().chunks(3).filter(|p| p[2] < 0.01 + 0.5 * h).map(|p| Point3::new(p[0], p[1], p[2])).collect();

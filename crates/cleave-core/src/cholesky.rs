@@ -843,15 +843,7 @@ mod tests {
     /// A 7×7×7 grid of nodes coupled by its 6³ cubes (8 nodes each), values `Laplacian ⊗ B`
     /// plus a shift: large enough that faer chooses a supernodal factor.
     fn symmetric_grid_system() -> (AssemblyPattern, Vec<Real>) {
-        let n = 7u32;
-        let node = |x: u32, y: u32, z: u32| x + n * (y + n * z);
-        let cubes: Vec<[u32; 8]> = (0..n - 1)
-            .flat_map(|z| (0..n - 1).flat_map(move |y| (0..n - 1).map(move |x| (x, y, z))))
-            .map(|(x, y, z)| {
-                [0, 1, 2, 3, 4, 5, 6, 7].map(|c| node(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)))
-            })
-            .collect();
-        group_laplacian_system((n * n * n) as usize, &cubes, 0.5)
+        box_grid_system(7, 7, 7)
     }
 
     /// A box grid of `nx × ny × nz` nodes coupled by its cubes, values as in

@@ -1141,20 +1141,29 @@ impl Integrator {
             for a in 0..3 {
                 b[(a, a)] += mass_scale * mass[3 * node + a];
             }
-            for a in 0..3 {
-                if pinned[3 * node + a] {
-                    for c in 0..3 {
-                        b[(a, c)] = 0.0;
-                        b[(c, a)] = 0.0;
-                    }
-                    b[(a, a)] = 1.0;
-                }
-            }
-            *b = b
-                .try_inverse()
-                .unwrap_or_else(|| Matrix3::from_diagonal(&b.diagonal().map(|d| if d != 0.0 { 1.0 / d } else { 1.0 })));
         });
+        invert_blocks_with_pins(blocks, pinned);
     }
+}
+
+/// Inverts every node's 3×3 diagonal block in place, a pinned DOF's row and column replaced by
+/// the identity's first (so the block-Jacobi preconditioner leaves pinned DOFs alone); a singular
+/// block falls back to its inverted diagonal.
+pub(crate) fn invert_blocks_with_pins(blocks: &mut [Matrix3<Real>], pinned: &[bool]) {
+    blocks.par_iter_mut().enumerate().for_each(|(node, b)| {
+        for a in 0..3 {
+            if pinned[3 * node + a] {
+                for c in 0..3 {
+                    b[(a, c)] = 0.0;
+                    b[(c, a)] = 0.0;
+                }
+                b[(a, a)] = 1.0;
+            }
+        }
+        *b = b
+            .try_inverse()
+            .unwrap_or_else(|| Matrix3::from_diagonal(&b.diagonal().map(|d| if d != 0.0 { 1.0 / d } else { 1.0 })));
+    });
 }
 
 /// `out += h² k p` for penalty pins (matrix-free).

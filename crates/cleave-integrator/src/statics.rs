@@ -5,6 +5,7 @@
 use crate::cg::CgWorkspace;
 use crate::constraints::Constraints;
 use crate::error::StepErrorKind;
+use crate::integrator::invert_blocks_with_pins;
 use crate::system::AssembledSystem;
 use crate::two_level::TwoLevel;
 use cleave_core::{Discretization, Matrix3, Real, Vector3};
@@ -30,12 +31,13 @@ pub struct StaticSolution {
     pub seconds_solve: Real,
 }
 
-/// Solves `K u = f` with `u_d = value` for every `(d, value)` in `prescribed`.
-pub fn solve_static(
+/// The DOF count of `discretization`, once the load has that length and every prescribed DOF
+/// exists.
+fn check_static_input(
     discretization: &dyn Discretization,
     load: &[Real],
     prescribed: &[(usize, Real)],
-) -> Result<StaticSolution, StepErrorKind> {
+) -> Result<usize, StepErrorKind> {
     let n = 3 * discretization.num_nodes();
     if load.len() != n {
         return Err(StepErrorKind::LoadLength { what: "load", len: load.len(), dofs: n });
@@ -43,6 +45,16 @@ pub fn solve_static(
     if let Some(&(d, _)) = prescribed.iter().find(|(d, _)| *d >= n) {
         return Err(StepErrorKind::DofOutOfRange { what: "prescribed", dof: d, dofs: n });
     }
+    Ok(n)
+}
+
+/// Solves `K u = f` with `u_d = value` for every `(d, value)` in `prescribed`.
+pub fn solve_static(
+    discretization: &dyn Discretization,
+    load: &[Real],
+    prescribed: &[(usize, Real)],
+) -> Result<StaticSolution, StepErrorKind> {
+    let n = check_static_input(discretization, load, prescribed)?;
     let clock = Instant::now();
     let constraints = Constraints { pinned_dofs: prescribed.iter().map(|&(d, _)| d).collect(), ..Default::default() };
     let mut system = AssembledSystem::new(discretization, &constraints, true)?;
@@ -133,13 +145,7 @@ impl<'a> IterativeStatics<'a> {
         load: &[Real],
         prescribed: &[(usize, Real)],
     ) -> Result<Self, StepErrorKind> {
-        let n = 3 * discretization.num_nodes();
-        if load.len() != n {
-            return Err(StepErrorKind::LoadLength { what: "load", len: load.len(), dofs: n });
-        }
-        if let Some(&(d, _)) = prescribed.iter().find(|(d, _)| *d >= n) {
-            return Err(StepErrorKind::DofOutOfRange { what: "prescribed", dof: d, dofs: n });
-        }
+        let n = check_static_input(discretization, load, prescribed)?;
         let clock = Instant::now();
         let mut pinned = vec![false; n];
         let mut prescribed_field = vec![0.0; n];
@@ -157,20 +163,7 @@ impl<'a> IterativeStatics<'a> {
         rhs.iter_mut().zip(&pinned).filter(|(_, p)| **p).for_each(|(r, _)| *r = 0.0);
         let mut block_inverses = vec![Matrix3::zeros(); discretization.num_nodes()];
         discretization.blocks().add_diagonal_blocks(&identity, 1.0, &mut block_inverses);
-        block_inverses.par_iter_mut().enumerate().for_each(|(node, b)| {
-            for a in 0..3 {
-                if pinned[3 * node + a] {
-                    for c in 0..3 {
-                        b[(a, c)] = 0.0;
-                        b[(c, a)] = 0.0;
-                    }
-                    b[(a, a)] = 1.0;
-                }
-            }
-            *b = b
-                .try_inverse()
-                .unwrap_or_else(|| Matrix3::from_diagonal(&b.diagonal().map(|d| if d != 0.0 { 1.0 / d } else { 1.0 })));
-        });
+        invert_blocks_with_pins(&mut block_inverses, &pinned);
         let two_level = match discretization.coarse_space() {
             Some(space) => Some(TwoLevel::new(discretization, space, &pinned, None, 0.0, 1.0, 0.0)?),
             None => None,
