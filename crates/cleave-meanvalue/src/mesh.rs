@@ -285,9 +285,11 @@ impl MeanValueMesh {
         triangles
     }
 
-    /// The characteristic element size: the mean element diameter.
+    /// The characteristic element size: the edge of a cube of the mean element volume (the cell
+    /// edge on a box of cubes, as the voxel backend reports).
     pub fn element_size(&self) -> Real {
-        self.elements.iter().map(|e| e.shape.diameter()).sum::<Real>() / self.elements.len().max(1) as Real
+        let volume = self.elements.iter().map(|e| e.volume).sum::<Real>() / self.elements.len().max(1) as Real;
+        volume.cbrt()
     }
 
     /// The mean deformation gradient of element `e` at positions `x`.
