@@ -47,6 +47,16 @@ pub enum MeanValueError {
     /// The block set rejected the stiffness.
     #[error("element stiffness: {0}")]
     Blocks(#[from] BlockSetError),
+    /// Elements do not meet face to face: a face no other element shares (as a node set) has
+    /// another element right behind it, as where one element has a node on a shared face that
+    /// its neighbour lacks (a hanging node).
+    #[error("element {element} is not conforming: its face {face} is not another element's, yet one lies behind it")]
+    NotConforming {
+        /// The element.
+        element: usize,
+        /// Its face (local index).
+        face: usize,
+    },
     /// A box needs at least one cell per axis and a positive size.
     #[error("a box needs positive cell counts and size, got {dims:?} cells of {h} m")]
     BadBox {
@@ -143,9 +153,47 @@ fn shape_key(shape: &ConvexPolyhedron, quantum: Real) -> ShapeKey {
     (coords, shape.faces().to_vec())
 }
 
+/// Every face that no other element shares (as a node set) must be on the body's boundary: a
+/// point just outside it, 1e-6 of the element's diameter along the face normal, must lie in no
+/// other element. Where a hanging node makes two sides of a shared face unequal, neither side
+/// is shared and each has the other's element behind it.
+fn validate_conforming(elements: &[Element], locator: &Locator) -> Result<(), MeanValueError> {
+    let global = |e: &Element, face: &[usize]| {
+        let mut key: Vec<u32> = face.iter().map(|&i| e.nodes[i]).collect();
+        key.sort_unstable();
+        key
+    };
+    let mut faces: HashMap<Vec<u32>, usize> = HashMap::new();
+    for element in elements {
+        for face in element.shape.faces() {
+            *faces.entry(global(element, face)).or_insert(0) += 1;
+        }
+    }
+    for (e, element) in elements.iter().enumerate() {
+        let shape = &element.shape;
+        for (f, face) in shape.faces().iter().enumerate() {
+            if faces[&global(element, face)] != 1 {
+                continue;
+            }
+            let centroid = face.iter().map(|&i| shape.vertices()[i].coords).sum::<Vector3<Real>>() / face.len() as Real;
+            let outside = Point3::from(centroid + shape.normals()[f] * (1e-6 * shape.diameter()));
+            let behind = locator.candidates(&outside, 0.0).filter(|&other| other != e).any(|other| {
+                let s = &elements[other].shape;
+                (0..s.faces().len()).all(|g| s.depth(g, &outside) > 1e-9 * s.diameter())
+            });
+            if behind {
+                return Err(MeanValueError::NotConforming { element: e, face: f });
+            }
+        }
+    }
+    Ok(())
+}
+
 impl MeanValueMesh {
     /// Builds the mesh of `elements` (each a polyhedron over local vertices and the global node
-    /// of each local vertex) on the nodes `rest` (positions).
+    /// of each local vertex) on the nodes `rest` (positions). Every element is valid by
+    /// construction (`ConvexPolyhedron::new`); the mesh must also be conforming (a node on a
+    /// neighbour's face or edge inserted into that face), or `NotConforming` names an element.
     pub fn new(
         material: Material,
         rest: Vec<Point3<Real>>,
@@ -196,8 +244,9 @@ impl MeanValueMesh {
             let volume = shape.volume();
             built.push(Element { shape, nodes: element_nodes, boundary_gradients, shifts, volume });
         }
-        let blocks = builder.finish(nodes)?;
         let locator = Locator::new(&built);
+        validate_conforming(&built, &locator)?;
+        let blocks = builder.finish(nodes)?;
         Ok(Self {
             material,
             rest: rest.iter().flat_map(|p| [p.x, p.y, p.z]).collect(),

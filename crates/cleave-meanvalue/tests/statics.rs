@@ -241,3 +241,40 @@ fn a_rigid_rotation_carries_no_elastic_force_or_energy() {
     assert!(largest < 1e-10 * scale, "force {largest:.2e} against {scale:.2e}");
     assert!(energy.abs() < 1e-10 * mesh.elastic_energy(&identity, &stretched), "energy {energy:.2e}");
 }
+
+#[test]
+fn a_hanging_node_is_refused_and_inserting_it_into_the_neighbour_is_accepted() {
+    // Two unit cubes side by side; the left one halved by y = 0.5, which puts two nodes on the
+    // shared face x = 1 that the right cube's square face lacks.
+    let left = ConvexPolyhedron::cuboid(Point3::origin(), Point3::new(1.0, 1.0, 1.0)).unwrap();
+    let (a, b) = left.split(&Vector3::y(), 0.5, 1e-12);
+    let right = ConvexPolyhedron::cuboid(Point3::new(1.0, 0.0, 0.0), Point3::new(2.0, 1.0, 1.0)).unwrap();
+    let build = |cells: Vec<ConvexPolyhedron>| {
+        let mut nodes: Vec<Point3<Real>> = Vec::new();
+        let elements = cells
+            .into_iter()
+            .map(|cell| {
+                let ids = cell
+                    .vertices()
+                    .iter()
+                    .map(|p| match nodes.iter().position(|q| (q - p).norm() < 1e-12) {
+                        Some(i) => i as u32,
+                        None => {
+                            nodes.push(*p);
+                            (nodes.len() - 1) as u32
+                        }
+                    })
+                    .collect();
+                (cell, ids)
+            })
+            .collect();
+        MeanValueMesh::new(material(), nodes, elements, 0)
+    };
+    let error = build(vec![a.clone().unwrap(), b.clone().unwrap(), right.clone()]).unwrap_err();
+    assert!(error.to_string().contains("not conforming"), "{error}");
+    // Split the right cube by the same plane: its face x = 1 now has the same two halves as the
+    // left cube's, and the mesh conforms.
+    let (c, d) = right.split(&Vector3::y(), 0.5, 1e-12);
+    let mesh = build(vec![a.unwrap(), b.unwrap(), c.unwrap(), d.unwrap()]).unwrap();
+    assert_eq!(mesh.num_elements(), 4);
+}
