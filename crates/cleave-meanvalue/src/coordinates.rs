@@ -38,6 +38,10 @@ pub struct Workspace {
     face_mu_gradients: Vec<Vector3<Real>>,
     t: Vec<Real>,
     t_gradients: Vec<Vector3<Real>>,
+    /// One face's vertices, in order.
+    polygon: Vec<Point3<Real>>,
+    /// The values of the inset evaluation that gives a boundary point's gradients.
+    inset_values: Vec<Real>,
 }
 
 /// 2D mean value coordinates (Floater 2003) of `y` in the convex polygon `points` (counter-
@@ -130,8 +134,9 @@ fn face_limit(element: &ConvexPolyhedron, f: usize, x: &Point3<Real>, values: &m
             return;
         }
     }
-    let points: Vec<Point3<Real>> = face.iter().map(|&v| vertices[v]).collect();
-    polygon_coordinates(&points, &n, &p, &mut work.face_mu, None, &mut work.t, &mut work.t_gradients);
+    work.polygon.clear();
+    work.polygon.extend(face.iter().map(|&v| vertices[v]));
+    polygon_coordinates(&work.polygon, &n, &p, &mut work.face_mu, None, &mut work.t, &mut work.t_gradients);
     for (k, &v) in face.iter().enumerate() {
         values[v] += work.face_mu[k];
     }
@@ -158,8 +163,10 @@ pub fn mean_value_coordinates(
         if let Some(gradients) = gradients {
             let centre = element.vertex_average();
             let inside = x + (centre - x).normalize() * (GRADIENT_INSET * diameter);
-            let mut scratch = vec![0.0; values.len()];
+            let mut scratch = std::mem::take(&mut work.inset_values);
+            scratch.resize(values.len(), 0.0);
             interior(element, &inside, &mut scratch, Some(gradients), work);
+            work.inset_values = scratch;
         }
         return;
     }
@@ -181,7 +188,6 @@ fn interior(
     work.weights.resize(k, 0.0);
     work.weight_gradients.clear();
     work.weight_gradients.resize(k, Vector3::zeros());
-    let mut points: Vec<Point3<Real>> = Vec::new();
     for (f, face) in element.faces().iter().enumerate() {
         let n = element.normals()[f];
         let h = element.depth(f, x);
@@ -211,10 +217,10 @@ fn interior(
         let scale = nm / h;
         let c = h / nm;
         let y = x + mv * c;
-        points.clear();
-        points.extend(face.iter().map(|&v| vertices[v]));
+        work.polygon.clear();
+        work.polygon.extend(face.iter().map(|&v| vertices[v]));
         polygon_coordinates(
-            &points,
+            &work.polygon,
             &n,
             &y,
             &mut work.face_mu,

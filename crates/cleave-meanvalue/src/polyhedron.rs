@@ -147,23 +147,18 @@ impl ConvexPolyhedron {
                 }
             }
         }
-        let mut edges: std::collections::HashMap<(usize, usize), i32> = std::collections::HashMap::new();
-        for face in &faces {
-            for k in 0..face.len() {
-                let (a, b) = (face[k], face[(k + 1) % face.len()]);
-                *edges.entry((a.min(b), a.max(b))).or_insert(0) += if a < b { 1 } else { -1 };
-            }
-        }
         // Each undirected edge once in each direction (a straight run of inserted nodes on one
-        // side must be matched by the same nodes on the other).
-        let mut count: std::collections::HashMap<(usize, usize), usize> = std::collections::HashMap::new();
+        // side must be matched by the same nodes on the other): (direction balance, uses).
+        let mut edges: std::collections::HashMap<(usize, usize), (i32, usize)> = std::collections::HashMap::new();
         for face in &faces {
             for k in 0..face.len() {
                 let (a, b) = (face[k], face[(k + 1) % face.len()]);
-                *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+                let entry = edges.entry((a.min(b), a.max(b))).or_insert((0, 0));
+                entry.0 += if a < b { 1 } else { -1 };
+                entry.1 += 1;
             }
         }
-        if let Some((&(a, b), _)) = edges.iter().find(|(e, balance)| **balance != 0 || count[*e] != 2) {
+        if let Some((&(a, b), _)) = edges.iter().find(|(_, (balance, uses))| *balance != 0 || *uses != 2) {
             return Err(PolyhedronError::NotClosed(a, b));
         }
         let element = Self { vertices, faces, normals, diameter, planarity };

@@ -38,6 +38,11 @@ fn cut_box(n: usize, planes: &[(Vector3<Real>, Real)]) -> MeanValueMesh {
             })
             .collect();
     }
+    weld(cells).unwrap()
+}
+
+/// The mesh of `cells` with nodes welded by position (to 1e-9 m).
+fn weld(cells: Vec<ConvexPolyhedron>) -> Result<MeanValueMesh, cleave_meanvalue::MeanValueError> {
     let mut nodes: Vec<Point3<Real>> = Vec::new();
     let mut index: HashMap<[i64; 3], u32> = HashMap::new();
     let key = |p: &Point3<Real>| [p.x, p.y, p.z].map(|c| (c * 1e9).round() as i64);
@@ -57,7 +62,7 @@ fn cut_box(n: usize, planes: &[(Vector3<Real>, Real)]) -> MeanValueMesh {
             (cell, ids)
         })
         .collect();
-    MeanValueMesh::new(material(), nodes, elements, 0).unwrap()
+    MeanValueMesh::new(material(), nodes, elements, 0)
 }
 
 fn on_boundary(p: &Point3<Real>) -> bool {
@@ -249,32 +254,58 @@ fn a_hanging_node_is_refused_and_inserting_it_into_the_neighbour_is_accepted() {
     let left = ConvexPolyhedron::cuboid(Point3::origin(), Point3::new(1.0, 1.0, 1.0)).unwrap();
     let (a, b) = left.split(&Vector3::y(), 0.5, 1e-12);
     let right = ConvexPolyhedron::cuboid(Point3::new(1.0, 0.0, 0.0), Point3::new(2.0, 1.0, 1.0)).unwrap();
-    let build = |cells: Vec<ConvexPolyhedron>| {
-        let mut nodes: Vec<Point3<Real>> = Vec::new();
-        let elements = cells
-            .into_iter()
-            .map(|cell| {
-                let ids = cell
-                    .vertices()
-                    .iter()
-                    .map(|p| match nodes.iter().position(|q| (q - p).norm() < 1e-12) {
-                        Some(i) => i as u32,
-                        None => {
-                            nodes.push(*p);
-                            (nodes.len() - 1) as u32
-                        }
-                    })
-                    .collect();
-                (cell, ids)
-            })
-            .collect();
-        MeanValueMesh::new(material(), nodes, elements, 0)
-    };
-    let error = build(vec![a.clone().unwrap(), b.clone().unwrap(), right.clone()]).unwrap_err();
+    let error = weld(vec![a.clone().unwrap(), b.clone().unwrap(), right.clone()]).unwrap_err();
     assert!(error.to_string().contains("not conforming"), "{error}");
     // Split the right cube by the same plane: its face x = 1 now has the same two halves as the
     // left cube's, and the mesh conforms.
     let (c, d) = right.split(&Vector3::y(), 0.5, 1e-12);
-    let mesh = build(vec![a.unwrap(), b.unwrap(), c.unwrap(), d.unwrap()]).unwrap();
+    let mesh = weld(vec![a.unwrap(), b.unwrap(), c.unwrap(), d.unwrap()]).unwrap();
     assert_eq!(mesh.num_elements(), 4);
+}
+
+#[test]
+fn the_internal_force_of_a_bent_body_turns_with_the_body() {
+    // A bent, cut body (not the rest state): u = bending about y plus a twist. Rotating and
+    // translating it rigidly must rotate every nodal force by the same rotation (the frames are
+    // found again from the moved positions).
+    let planes = [(Vector3::new(1.0, 0.7, 0.3), 0.58), (Vector3::new(-0.4, 1.0, 0.9), 0.41)];
+    let mesh = cut_box(2, &planes);
+    let bent: Vec<Real> = mesh
+        .rest_dofs()
+        .chunks(3)
+        .flat_map(|p| {
+            let (x, y, z) = (p[0], p[1], p[2]);
+            [x - 0.1 * x * z, y + 0.05 * x * z, z + 0.08 * x * x + 0.03 * y * x]
+        })
+        .collect();
+    let rotation =
+        Rotation3::from_axis_angle(&Vector3::z_axis(), 0.7) * Rotation3::from_axis_angle(&Vector3::x_axis(), -1.2);
+    let shift = Vector3::new(-2.0, 0.5, 3.0);
+    let moved: Vec<Real> = bent
+        .chunks(3)
+        .flat_map(|p| {
+            let q = rotation * Vector3::new(p[0], p[1], p[2]) + shift;
+            [q.x, q.y, q.z]
+        })
+        .collect();
+    let force_at = |x: &[Real]| {
+        let mut rotations = vec![Matrix3::identity(); mesh.num_frames()];
+        for _ in 0..6 {
+            mesh.write_rotations(x, &mut rotations);
+        }
+        let mut f = vec![0.0; x.len()];
+        mesh.add_internal_force(&rotations, x, &mut f);
+        (f, mesh.elastic_energy(&rotations, x))
+    };
+    let (f, energy) = force_at(&bent);
+    let (g, moved_energy) = force_at(&moved);
+    let scale = f.iter().fold(0.0, |m: Real, v| m.max(v.abs()));
+    assert!(scale > 0.0 && energy > 0.0);
+    let mut worst: Real = 0.0;
+    for (a, b) in f.chunks(3).zip(g.chunks(3)) {
+        let turned = rotation * Vector3::new(a[0], a[1], a[2]);
+        worst = worst.max((turned - Vector3::new(b[0], b[1], b[2])).norm());
+    }
+    assert!(worst < 1e-9 * scale, "{worst:.2e} of {scale:.2e}");
+    assert!((moved_energy - energy).abs() < 1e-9 * energy, "{moved_energy} vs {energy}");
 }
