@@ -154,12 +154,20 @@ pub fn mean_value_coordinates(
     work: &mut Workspace,
 ) {
     let diameter = element.diameter();
+    let tolerance = boundary_tolerance(element);
     let nearest = (0..element.faces().len())
         .map(|f| (f, element.depth(f, x)))
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .expect("an element has faces");
-    if nearest.1 <= boundary_tolerance(element) {
-        face_limit(element, nearest.0, x, values, work);
+    if nearest.1 <= tolerance {
+        // Of the faces whose plane holds the point (coplanar faces where a neighbour's split
+        // face was split alike), the one whose polygon holds its projection.
+        let face = (0..element.faces().len())
+            .filter(|&f| element.depth(f, x) <= tolerance.max(nearest.1))
+            .map(|f| (f, outside_polygon(element, f, x)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map_or(nearest.0, |(f, _)| f);
+        face_limit(element, face, x, values, work);
         if let Some(gradients) = gradients {
             let centre = element.vertex_average();
             let inside = x + (centre - x).normalize() * (GRADIENT_INSET * diameter);
@@ -171,6 +179,20 @@ pub fn mean_value_coordinates(
         return;
     }
     interior(element, x, values, gradients, work);
+}
+
+/// How far the projection of `x` onto face `f`'s plane lies outside its polygon (negative
+/// inside): the largest outward distance from an edge's line.
+fn outside_polygon(element: &ConvexPolyhedron, f: usize, x: &Point3<Real>) -> Real {
+    let (face, n, vertices) = (&element.faces()[f], element.normals()[f], element.vertices());
+    (0..face.len())
+        .map(|k| {
+            let (a, b) = (vertices[face[k]], vertices[face[(k + 1) % face.len()]]);
+            let outward = (b - a).cross(&n);
+            let length = outward.norm();
+            if length > 0.0 { outward.dot(&(x - a)) / length } else { Real::MIN }
+        })
+        .fold(Real::MIN, Real::max)
 }
 
 /// (1)–(5) and (6)–(12) of mean-value.md for a point strictly inside every face plane.

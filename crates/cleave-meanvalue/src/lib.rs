@@ -16,6 +16,8 @@
 //! ```
 
 pub mod coordinates;
+mod cut;
+mod cuttable;
 pub mod element;
 pub mod mesh;
 pub mod polyhedron;
@@ -23,4 +25,5 @@ pub mod polyhedron;
 pub use coordinates::{BOUNDARY_TOLERANCE, GRADIENT_INSET, Workspace, mean_value_coordinates};
 pub use element::{ElementIntegrals, quadrature};
 pub use mesh::{DEFAULT_REFINEMENT, MeanValueError, MeanValueMesh};
+pub use cut::ON_PLANE_TOLERANCE;
 pub use polyhedron::{ConvexPolyhedron, GEOMETRY_TOLERANCE, PolyhedronError};

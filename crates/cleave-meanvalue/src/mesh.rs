@@ -69,26 +69,28 @@ pub enum MeanValueError {
 
 /// One element: its polyhedron, its nodes, and what the steps need of its integrals.
 #[derive(Clone, Debug)]
-struct Element {
-    shape: ConvexPolyhedron,
-    nodes: Vec<u32>,
+pub(crate) struct Element {
+    pub(crate) shape: ConvexPolyhedron,
+    pub(crate) nodes: Vec<u32>,
     /// `∮ λ_i n dA` per local node.
     boundary_gradients: Vec<Vector3<Real>>,
     /// The gradient correction per local node (`ElementIntegrals`), for field evaluation.
     shifts: Vec<Vector3<Real>>,
-    volume: Real,
+    pub(crate) volume: Real,
+    /// Per face: lies on a cut (separated from the element across it, or a crack's face).
+    pub(crate) cut: Vec<bool>,
 }
 
 /// A mean value mesh.
 #[derive(Clone, Debug)]
 pub struct MeanValueMesh {
-    material: Material,
-    rest: Vec<Real>,
-    elements: Vec<Element>,
+    pub(crate) material: Material,
+    pub(crate) rest: Vec<Real>,
+    pub(crate) elements: Vec<Element>,
     mass: Mass,
     blocks: BlockSet,
-    refinement: u32,
-    epoch: u64,
+    pub(crate) refinement: u32,
+    pub(crate) epoch: u64,
     /// Element bounding boxes and a uniform grid over them, for `embed`.
     locator: Locator,
 }
@@ -172,7 +174,7 @@ fn validate_conforming(elements: &[Element], locator: &Locator) -> Result<(), Me
     for (e, element) in elements.iter().enumerate() {
         let shape = &element.shape;
         for (f, face) in shape.faces().iter().enumerate() {
-            if faces[&global(element, face)] != 1 {
+            if faces[&global(element, face)] != 1 || element.cut[f] {
                 continue;
             }
             let centroid = face.iter().map(|&i| shape.vertices()[i].coords).sum::<Vector3<Real>>() / face.len() as Real;
@@ -200,15 +202,33 @@ impl MeanValueMesh {
         elements: Vec<(ConvexPolyhedron, Vec<u32>)>,
         refinement: u32,
     ) -> Result<Self, MeanValueError> {
+        let elements = elements
+            .into_iter()
+            .map(|(shape, nodes)| {
+                let cut = vec![false; shape.faces().len()];
+                (shape, nodes, cut)
+            })
+            .collect();
+        Self::with_cut_faces(material, rest, elements, refinement)
+    }
+
+    /// [`MeanValueMesh::new`] with the faces that lie on a cut flagged per element (they are
+    /// boundary, whatever lies behind them).
+    pub(crate) fn with_cut_faces(
+        material: Material,
+        rest: Vec<Point3<Real>>,
+        elements: Vec<(ConvexPolyhedron, Vec<u32>, Vec<bool>)>,
+        refinement: u32,
+    ) -> Result<Self, MeanValueError> {
         let nodes = rest.len();
         let (lambda, mu) = material.lame();
         let mut builder = BlockSetBuilder::new().translation_invariant();
         let mut library: HashMap<ShapeKey, SharedIntegrals> = HashMap::new();
         let mut built = Vec::with_capacity(elements.len());
         // 2⁻⁴⁰ of the largest element: translated copies share a key, round-off aside.
-        let quantum = elements.iter().map(|(shape, _)| shape.diameter()).fold(0.0, Real::max) / (1u64 << 40) as Real;
+        let quantum = elements.iter().map(|(shape, ..)| shape.diameter()).fold(0.0, Real::max) / (1u64 << 40) as Real;
         let mut lumped = vec![0.0; 3 * nodes];
-        for (e, (shape, element_nodes)) in elements.into_iter().enumerate() {
+        for (e, (shape, element_nodes, cut)) in elements.into_iter().enumerate() {
             if let Some(&node) = element_nodes.iter().find(|&&n| n as usize >= nodes) {
                 return Err(MeanValueError::NodeOutOfRange { element: e, node, nodes });
             }
@@ -242,7 +262,7 @@ impl MeanValueMesh {
             }
             builder.push(&element_nodes, rest_id, Some(e as u32));
             let volume = shape.volume();
-            built.push(Element { shape, nodes: element_nodes, boundary_gradients, shifts, volume });
+            built.push(Element { shape, nodes: element_nodes, boundary_gradients, shifts, volume, cut });
         }
         let locator = Locator::new(&built);
         validate_conforming(&built, &locator)?;
@@ -375,6 +395,14 @@ impl MeanValueMesh {
 impl Discretization for MeanValueMesh {
     fn name(&self) -> &str {
         "meanvalue"
+    }
+
+    fn as_cuttable(&mut self) -> Option<&mut dyn cleave_core::Cuttable> {
+        Some(self)
+    }
+
+    fn copy_for_cutting(&self) -> Option<Box<dyn Discretization>> {
+        Some(Box::new(self.clone()))
     }
 
     fn num_nodes(&self) -> usize {

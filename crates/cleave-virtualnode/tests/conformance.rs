@@ -2,7 +2,7 @@
 //! and the cut contract (`cleave_testkit::cut_conformance`).
 
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real, Vector3};
-use cleave_testkit::cut_conformance::{CutBody, CutSubject, cut_conformance};
+use cleave_testkit::cut_conformance::{CutBody, CutSubject, Transfer, cut_conformance};
 use cleave_testkit::{assert_all_pass, conformance_suite};
 use cleave_virtualnode::{VirtualNodeMesh, box_surface};
 use nalgebra::Isometry3;
@@ -65,6 +65,7 @@ fn cuts_keep_the_cut_contract() {
             CutSurface::Plane { point: Point3::new(0.0, 0.0, 0.3), normal: Vector3::z() },
         ],
         placement: Isometry3::new(Vector3::new(0.37, -1.21, 2.53), Vector3::new(0.3, -0.5, 0.8)),
+        transfer: Transfer::Exact,
     };
     assert_all_pass(&cut_conformance(&subject));
 }

@@ -1,0 +1,653 @@
+//! Cutting a mesh of convex polyhedra by splitting elements (wicke2007 §5, docs/math/mean-value.md
+//! §7): the topology of the elements as polygons of global nodes, split by the plane of each cut
+//! triangle, the faces in that plane split by the triangle's edges, the faces inside the triangle
+//! covered, nodes duplicated per group of elements still joined around them, and a pocket node
+//! where a covered region has no node to open with. Every new node's rest position and its row
+//! over the old nodes (the old element's mean value coordinates there) are recorded for
+//! `DofRemap::Linear`.
+//!
+//! Conformity is kept without subdividing neighbours: a node created on an edge is inserted into
+//! every face holding that edge, and a face split in one element is split the same way in the
+//! element across it (two coplanar faces there), so the two sides of every shared face stay the
+//! same polygons.
+
+use nalgebra::{Point2, Point3, Vector3};
+use std::collections::{BTreeMap, HashMap, HashSet};
+
+use crate::polyhedron::Real;
+
+/// Distance from a cutting plane, relative to the largest element diameter, under which a node
+/// counts as on it (round-off of nodes computed on earlier cuts).
+pub const ON_PLANE_TOLERANCE: Real = 1e-12;
+
+/// One element of the topology being cut: faces as cycles of global nodes (counter-clockwise
+/// from outside), which faces lie on a cut, and the element of the mesh before this cut that
+/// holds it.
+#[derive(Clone, Debug)]
+pub(crate) struct CutElement {
+    pub faces: Vec<Vec<u32>>,
+    pub cut: Vec<Mark>,
+    pub parent: u32,
+}
+
+/// Whether a face lies on a cut, and whether this cut covered it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Mark {
+    /// Material continues across it (or it is on the original boundary).
+    Open,
+    /// Covered by an earlier cut.
+    Cut,
+    /// Covered by the cut being made.
+    NewCut,
+}
+
+impl Mark {
+    pub fn is_cut(self) -> bool {
+        self != Mark::Open
+    }
+}
+
+/// A node's value as weights over the nodes before the cut.
+pub(crate) type Row = Vec<(u32, Real)>;
+
+/// The topology a cut works on, with every new node's position and row.
+pub(crate) struct Topology<'a> {
+    pub positions: Vec<Point3<Real>>,
+    /// Rows of nodes created by this cut (index − `old_nodes`).
+    pub rows: Vec<Row>,
+    pub old_nodes: usize,
+    pub elements: Vec<CutElement>,
+    boxes: Vec<(Point3<Real>, Point3<Real>)>,
+    largest: Real,
+    tolerance: Real,
+    /// The row of a point of an old element (its coordinates there).
+    interpolate: &'a dyn Fn(u32, &Point3<Real>) -> Row,
+}
+
+/// A plane `n·x = offset` (unit `n`).
+#[derive(Clone, Copy, Debug)]
+struct Plane {
+    n: Vector3<Real>,
+    offset: Real,
+}
+
+impl Plane {
+    fn distance(&self, p: &Point3<Real>) -> Real {
+        self.n.dot(&p.coords) - self.offset
+    }
+}
+
+/// A cut triangle prepared: its plane, the inward planes through its edges (perpendicular to it)
+/// and a 2D frame of its plane.
+struct CutTriangle {
+    plane: Plane,
+    sides: [Plane; 3],
+    corners: [Point3<Real>; 3],
+}
+
+impl CutTriangle {
+    fn new(t: &[Point3<Real>; 3]) -> Option<Self> {
+        let normal = (t[1] - t[0]).cross(&(t[2] - t[0]));
+        let scale = [(t[1] - t[0]).norm(), (t[2] - t[1]).norm(), (t[0] - t[2]).norm()].into_iter().fold(0.0, Real::max);
+        if !(normal.norm() > 1e-12 * scale * scale) {
+            return None;
+        }
+        let n = normal.normalize();
+        let plane = Plane { n, offset: n.dot(&t[0].coords) };
+        let sides = std::array::from_fn(|i| {
+            let (a, b) = (t[i], t[(i + 1) % 3]);
+            let m = n.cross(&(b - a)).normalize();
+            Plane { n: m, offset: m.dot(&a.coords) }
+        });
+        Some(Self { plane, sides, corners: *t })
+    }
+
+    fn bounds(&self) -> (Point3<Real>, Point3<Real>) {
+        let lo = self.corners[0].inf(&self.corners[1]).inf(&self.corners[2]);
+        let hi = self.corners[0].sup(&self.corners[1]).sup(&self.corners[2]);
+        (lo, hi)
+    }
+}
+
+/// The sorted node set of a face: the same for both sides of a shared face.
+fn key(face: &[u32]) -> Vec<u32> {
+    let mut k = face.to_vec();
+    k.sort_unstable();
+    k
+}
+
+fn bounds_of(positions: &[Point3<Real>], element: &CutElement) -> (Point3<Real>, Point3<Real>) {
+    let mut nodes = element.faces.iter().flatten();
+    let first = positions[*nodes.next().expect("an element has nodes") as usize];
+    element.faces.iter().flatten().fold((first, first), |(lo, hi), &v| {
+        let p = positions[v as usize];
+        (lo.inf(&p), hi.sup(&p))
+    })
+}
+
+/// Area of the part of the convex polygon `points` (in a plane with unit normal `n`) inside the
+/// three half-spaces `sides`: Sutherland–Hodgman clipping of its projection.
+fn area_inside(points: &[Point3<Real>], n: &Vector3<Real>, sides: &[Plane; 3]) -> Real {
+    let mut polygon: Vec<Point3<Real>> = points.to_vec();
+    for side in sides {
+        let mut clipped = Vec::with_capacity(polygon.len() + 2);
+        for k in 0..polygon.len() {
+            let (a, b) = (polygon[k], polygon[(k + 1) % polygon.len()]);
+            let (da, db) = (side.distance(&a), side.distance(&b));
+            if da >= 0.0 {
+                clipped.push(a);
+            }
+            if (da > 0.0 && db < 0.0) || (da < 0.0 && db > 0.0) {
+                clipped.push(a + (b - a) * (da / (da - db)));
+            }
+        }
+        polygon = clipped;
+        if polygon.len() < 3 {
+            return 0.0;
+        }
+    }
+    let mut area = Vector3::zeros();
+    for k in 0..polygon.len() {
+        area += polygon[k].coords.cross(&polygon[(k + 1) % polygon.len()].coords);
+    }
+    (area.dot(n) / 2.0).abs()
+}
+
+/// The convex hull of points of a plane (unit normal `n`), counter-clockwise about `n`.
+fn planar_hull(points: &[Point3<Real>], n: &Vector3<Real>) -> Vec<Point3<Real>> {
+    let u = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    let u = (u - n * n.dot(&u)).normalize();
+    let w = n.cross(&u);
+    let mut flat: Vec<(Point2<Real>, usize)> =
+        points.iter().enumerate().map(|(i, p)| (Point2::new(p.coords.dot(&u), p.coords.dot(&w)), i)).collect();
+    flat.sort_by(|a, b| a.0.x.total_cmp(&b.0.x).then(a.0.y.total_cmp(&b.0.y)));
+    let cross = |o: Point2<Real>, a: Point2<Real>, b: Point2<Real>| (a - o).perp(&(b - o));
+    let mut hull: Vec<(Point2<Real>, usize)> = Vec::with_capacity(flat.len() + 1);
+    for pass in 0..2 {
+        let start = hull.len();
+        let iter: Box<dyn Iterator<Item = &(Point2<Real>, usize)>> =
+            if pass == 0 { Box::new(flat.iter()) } else { Box::new(flat.iter().rev()) };
+        for &p in iter {
+            while hull.len() >= start + 2 && cross(hull[hull.len() - 2].0, hull[hull.len() - 1].0, p.0) <= 0.0 {
+                hull.pop();
+            }
+            hull.push(p);
+        }
+        hull.pop();
+    }
+    hull.into_iter().map(|(_, i)| points[i]).collect()
+}
+
+impl<'a> Topology<'a> {
+    pub fn new(
+        positions: Vec<Point3<Real>>,
+        elements: Vec<CutElement>,
+        interpolate: &'a dyn Fn(u32, &Point3<Real>) -> Row,
+    ) -> Self {
+        let boxes: Vec<_> = elements.iter().map(|e| bounds_of(&positions, e)).collect();
+        let largest = boxes.iter().map(|(lo, hi)| (hi - lo).norm()).fold(0.0, Real::max);
+        Self {
+            old_nodes: positions.len(),
+            positions,
+            rows: Vec::new(),
+            elements,
+            boxes,
+            largest,
+            tolerance: ON_PLANE_TOLERANCE * largest,
+            interpolate,
+        }
+    }
+
+    /// Elements whose box comes within the largest element diameter of `[lo, hi]` (every element
+    /// that shares a node or edge with one meeting the box), ascending.
+    fn near(&self, lo: &Point3<Real>, hi: &Point3<Real>) -> Vec<usize> {
+        let pad = self.largest;
+        (0..self.elements.len())
+            .filter(|&e| {
+                let (a, b) = &self.boxes[e];
+                (0..3).all(|k| a[k] <= hi[k] + pad && b[k] >= lo[k] - pad)
+            })
+            .collect()
+    }
+
+    fn add_node(&mut self, p: Point3<Real>, row: Row) -> u32 {
+        self.positions.push(p);
+        self.rows.push(row);
+        (self.positions.len() - 1) as u32
+    }
+
+    /// The row of node `v` over the old nodes.
+    fn row(&self, v: u32) -> Row {
+        if (v as usize) < self.old_nodes { vec![(v, 1.0)] } else { self.rows[v as usize - self.old_nodes].clone() }
+    }
+
+    fn side(&self, plane: &Plane, v: u32) -> i8 {
+        let d = plane.distance(&self.positions[v as usize]);
+        if d > self.tolerance {
+            1
+        } else if d < -self.tolerance {
+            -1
+        } else {
+            0
+        }
+    }
+
+    /// Cuts along one triangle: splits the elements whose section by its plane meets it, splits
+    /// the faces in its plane by its edges, and covers those inside it.
+    pub fn cut_triangle(&mut self, triangle: &[Point3<Real>; 3]) -> Result<(), String> {
+        let Some(t) = CutTriangle::new(triangle) else { return Ok(()) };
+        let (lo, hi) = t.bounds();
+        let mut near = self.near(&lo, &hi);
+        // Elements crossed by the plane whose section meets the triangle.
+        let mut to_split = Vec::new();
+        for &e in &near {
+            let element = &self.elements[e];
+            let nodes: Vec<u32> = element.faces.iter().flatten().copied().collect();
+            let sides: Vec<i8> = nodes.iter().map(|&v| self.side(&t.plane, v)).collect();
+            if !(sides.contains(&1) && sides.contains(&-1)) {
+                continue;
+            }
+            let mut section: Vec<Point3<Real>> = Vec::new();
+            for face in &element.faces {
+                for k in 0..face.len() {
+                    let (a, b) = (face[k], face[(k + 1) % face.len()]);
+                    let (sa, sb) = (self.side(&t.plane, a), self.side(&t.plane, b));
+                    if sa == 0 {
+                        section.push(self.positions[a as usize]);
+                    } else if sa * sb < 0 {
+                        let (pa, pb) = (self.positions[a as usize], self.positions[b as usize]);
+                        let (da, db) = (t.plane.distance(&pa), t.plane.distance(&pb));
+                        section.push(pa + (pb - pa) * (da / (da - db)));
+                    }
+                }
+            }
+            let hull = planar_hull(&section, &t.plane.n);
+            if hull.len() >= 3 && area_inside(&hull, &t.plane.n, &t.sides) > self.tolerance * self.largest {
+                to_split.push(e);
+            }
+        }
+        self.split(&mut near, &t.plane, &to_split, &HashSet::new())?;
+        // The faces in the plane that the triangle overlaps, split by its edges' planes.
+        for side in &t.sides {
+            let faces: HashSet<Vec<u32>> = self
+                .faces_in_plane(&near, &t.plane)
+                .into_iter()
+                .filter(|f| {
+                    let points: Vec<Point3<Real>> = f.iter().map(|&v| self.positions[v as usize]).collect();
+                    area_inside(&points, &t.plane.n, &t.sides) > self.tolerance * self.largest
+                })
+                .map(|f| key(&f))
+                .collect();
+            self.split(&mut near, side, &[], &faces)?;
+        }
+        // Cover the faces in the plane inside the triangle (both sides of each).
+        let inside: HashSet<Vec<u32>> = self
+            .faces_in_plane(&near, &t.plane)
+            .into_iter()
+            .filter(|f| {
+                let c = f.iter().map(|&v| self.positions[v as usize].coords).sum::<Vector3<Real>>() / f.len() as Real;
+                t.sides.iter().all(|s| s.distance(&Point3::from(c)) > self.tolerance)
+            })
+            .map(|f| key(&f))
+            .collect();
+        for &e in &near {
+            let element = &mut self.elements[e];
+            for (face, mark) in element.faces.iter().zip(element.cut.iter_mut()) {
+                if *mark == Mark::Open && inside.contains(&key(face)) {
+                    *mark = Mark::NewCut;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The faces of `elements` with every node on `plane`.
+    fn faces_in_plane(&self, elements: &[usize], plane: &Plane) -> Vec<Vec<u32>> {
+        let mut faces = Vec::new();
+        for &e in elements {
+            for face in &self.elements[e].faces {
+                if face.iter().all(|&v| self.side(plane, v) == 0) {
+                    faces.push(face.clone());
+                }
+            }
+        }
+        faces
+    }
+
+    /// Splits the elements `to_split` (all crossed by `plane`) into their two convex parts, and
+    /// the faces whose key is in `faces` (crossed by `plane`) into two; the same faces in every
+    /// other element of `near` are split alike, and new edge nodes are inserted into every face
+    /// of `near` holding the edge. New parts are appended to `near`.
+    fn split(
+        &mut self,
+        near: &mut Vec<usize>,
+        plane: &Plane,
+        to_split: &[usize],
+        faces: &HashSet<Vec<u32>>,
+    ) -> Result<(), String> {
+        let crossed = |this: &Self, face: &[u32]| {
+            let s: Vec<i8> = face.iter().map(|&v| this.side(plane, v)).collect();
+            s.contains(&1) && s.contains(&-1)
+        };
+        let mut split_faces: HashSet<Vec<u32>> = faces.iter().filter(|f| crossed(self, f)).cloned().collect();
+        for &e in to_split {
+            for face in &self.elements[e].faces {
+                if crossed(self, face) {
+                    split_faces.insert(key(face));
+                }
+            }
+        }
+        if split_faces.is_empty() && to_split.is_empty() {
+            return Ok(());
+        }
+        // New nodes on crossed edges of the faces to split, in a deterministic order.
+        let mut edge_nodes: BTreeMap<(u32, u32), u32> = BTreeMap::new();
+        for &e in near.iter() {
+            for fi in 0..self.elements[e].faces.len() {
+                let face = self.elements[e].faces[fi].clone();
+                if !split_faces.contains(&key(&face)) {
+                    continue;
+                }
+                for k in 0..face.len() {
+                    let (a, b) = (face[k], face[(k + 1) % face.len()]);
+                    let (lo, hi) = (a.min(b), a.max(b));
+                    if self.side(plane, lo) * self.side(plane, hi) < 0 && !edge_nodes.contains_key(&(lo, hi)) {
+                        let (pa, pb) = (self.positions[lo as usize], self.positions[hi as usize]);
+                        let (da, db) = (plane.distance(&pa), plane.distance(&pb));
+                        let p = pa + (pb - pa) * (da / (da - db));
+                        let row = (self.interpolate)(self.elements[e].parent, &p);
+                        let v = self.add_node(p, row);
+                        edge_nodes.insert((lo, hi), v);
+                    }
+                }
+            }
+        }
+        let split_set: HashSet<usize> = to_split.iter().copied().collect();
+        let mut appended = Vec::new();
+        for &e in near.iter() {
+            let element = &self.elements[e];
+            // Insert the new edge nodes, remembering which faces were to split.
+            let mut inserted: Vec<(Vec<u32>, Mark, bool)> = Vec::with_capacity(element.faces.len());
+            for (face, &cut) in element.faces.iter().zip(&element.cut) {
+                let to = split_faces.contains(&key(face));
+                let mut out = Vec::with_capacity(face.len() + 2);
+                for k in 0..face.len() {
+                    let (a, b) = (face[k], face[(k + 1) % face.len()]);
+                    out.push(a);
+                    if let Some(&m) = edge_nodes.get(&(a.min(b), a.max(b))) {
+                        out.push(m);
+                    }
+                }
+                inserted.push((out, cut, to));
+            }
+            let part = |this: &Self, face: &[u32], keep: i8| -> Option<Vec<u32>> {
+                let out: Vec<u32> = face.iter().copied().filter(|&v| this.side(plane, v) != -keep).collect();
+                (out.len() >= 3 && out.iter().any(|&v| this.side(plane, v) == keep)).then_some(out)
+            };
+            if split_set.contains(&e) {
+                let mut parts = Vec::with_capacity(2);
+                for keep in [-1i8, 1] {
+                    let (mut faces, mut cut) = (Vec::new(), Vec::new());
+                    let mut cap_edges: HashMap<u32, u32> = HashMap::new();
+                    for (face, c, _) in &inserted {
+                        let Some(p) = part(self, face, keep) else { continue };
+                        for k in 0..p.len() {
+                            let (a, b) = (p[k], p[(k + 1) % p.len()]);
+                            if self.side(plane, a) == 0 && self.side(plane, b) == 0 {
+                                if cap_edges.insert(b, a).is_some() {
+                                    return Err(format!("element {e}: its section by a cutting plane is not a polygon"));
+                                }
+                            }
+                        }
+                        faces.push(p);
+                        cut.push(*c);
+                    }
+                    let Some((&start, _)) = cap_edges.iter().min_by_key(|(a, _)| **a) else {
+                        return Err(format!("element {e}: no section by a cutting plane"));
+                    };
+                    let mut cap = vec![start];
+                    let mut current = cap_edges[&start];
+                    while current != start {
+                        if cap.len() > cap_edges.len() {
+                            return Err(format!("element {e}: its section by a cutting plane is not closed"));
+                        }
+                        cap.push(current);
+                        current = *cap_edges
+                            .get(&current)
+                            .ok_or_else(|| format!("element {e}: its section by a cutting plane is open"))?;
+                    }
+                    if cap.len() != cap_edges.len() || cap.len() < 3 {
+                        return Err(format!("element {e}: its section by a cutting plane is not one polygon"));
+                    }
+                    faces.push(cap);
+                    cut.push(Mark::Open);
+                    parts.push((faces, cut));
+                }
+                let parent = self.elements[e].parent;
+                let (above_faces, above_cut) = parts.pop().expect("two parts");
+                let (below_faces, below_cut) = parts.pop().expect("two parts");
+                self.elements[e] = CutElement { faces: below_faces, cut: below_cut, parent };
+                self.elements.push(CutElement { faces: above_faces, cut: above_cut, parent });
+                appended.push(self.elements.len() - 1);
+            } else {
+                let (mut faces, mut cut) = (Vec::with_capacity(inserted.len() + 1), Vec::with_capacity(inserted.len() + 1));
+                for (face, c, to) in inserted {
+                    if to {
+                        for keep in [-1i8, 1] {
+                            if let Some(p) = part(self, &face, keep) {
+                                faces.push(p);
+                                cut.push(c);
+                            }
+                        }
+                    } else {
+                        faces.push(face);
+                        cut.push(c);
+                    }
+                }
+                self.elements[e].faces = faces;
+                self.elements[e].cut = cut;
+            }
+        }
+        for &e in near.iter().chain(&appended) {
+            if e >= self.boxes.len() {
+                self.boxes.push(bounds_of(&self.positions, &self.elements[e]));
+            } else {
+                self.boxes[e] = bounds_of(&self.positions, &self.elements[e]);
+            }
+        }
+        near.extend(appended);
+        Ok(())
+    }
+
+    /// Faces by key: `(element, face)` of each side.
+    fn face_index(&self) -> HashMap<Vec<u32>, Vec<(usize, usize)>> {
+        let mut index: HashMap<Vec<u32>, Vec<(usize, usize)>> = HashMap::new();
+        for (e, element) in self.elements.iter().enumerate() {
+            for (f, face) in element.faces.iter().enumerate() {
+                index.entry(key(face)).or_default().push((e, f));
+            }
+        }
+        index
+    }
+
+    /// For each node on a covered face, its incident elements grouped by what still joins them
+    /// around it (shared faces through it that no cut covers); nodes with one group are left out.
+    fn groups(&self) -> BTreeMap<u32, Vec<Vec<usize>>> {
+        let index = self.face_index();
+        let mut on_cut: Vec<u32> = Vec::new();
+        for element in &self.elements {
+            for (face, &cut) in element.faces.iter().zip(&element.cut) {
+                if cut.is_cut() {
+                    on_cut.extend(face);
+                }
+            }
+        }
+        on_cut.sort_unstable();
+        on_cut.dedup();
+        let wanted: HashSet<u32> = on_cut.iter().copied().collect();
+        let mut incident: HashMap<u32, Vec<usize>> = HashMap::new();
+        for (e, element) in self.elements.iter().enumerate() {
+            let mut nodes: Vec<u32> = element.faces.iter().flatten().copied().filter(|v| wanted.contains(v)).collect();
+            nodes.sort_unstable();
+            nodes.dedup();
+            for v in nodes {
+                incident.entry(v).or_default().push(e);
+            }
+        }
+        let mut result = BTreeMap::new();
+        for v in on_cut {
+            let elements = &incident[&v];
+            let mut group: Vec<usize> = (0..elements.len()).collect();
+            fn find(group: &mut [usize], i: usize) -> usize {
+                let mut r = i;
+                while group[r] != r {
+                    r = group[r];
+                }
+                group[i] = r;
+                r
+            }
+            for (i, &e) in elements.iter().enumerate() {
+                for (face, &cut) in self.elements[e].faces.iter().zip(&self.elements[e].cut) {
+                    if cut.is_cut() || !face.contains(&v) {
+                        continue;
+                    }
+                    for &(other, of) in &index[&key(face)] {
+                        if other != e && !self.elements[other].cut[of].is_cut() {
+                            let j = elements.binary_search(&other).expect("incident");
+                            let (a, b) = (find(&mut group, i), find(&mut group, j));
+                            group[a.max(b)] = a.min(b);
+                        }
+                    }
+                }
+            }
+            let mut by_root: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+            for i in 0..elements.len() {
+                let r = find(&mut group, i);
+                by_root.entry(r).or_default().push(elements[i]);
+            }
+            if by_root.len() > 1 {
+                result.insert(v, by_root.into_values().collect());
+            }
+        }
+        result
+    }
+
+    /// Inserts a pocket node (wicke2007 §5.2) into each region of faces covered by this cut that
+    /// no node can open: at the centroid of its largest face, which becomes a fan of covered
+    /// triangles around it on both sides.
+    fn add_pockets(&mut self, opening: &HashSet<u32>) {
+        let mut regions: Vec<Vec<Vec<u32>>> = Vec::new();
+        // Faces this cut covered with material on both sides (a cut along the body's boundary
+        // opens nothing).
+        let index = self.face_index();
+        let mut covered: Vec<Vec<u32>> = index
+            .iter()
+            .filter(|(_, sides)| sides.len() == 2 && sides.iter().all(|&(e, f)| self.elements[e].cut[f] == Mark::NewCut))
+            .map(|(k, _)| k.clone())
+            .collect();
+        covered.sort_unstable();
+        // Regions: covered faces joined through shared nodes.
+        let mut node_region: HashMap<u32, usize> = HashMap::new();
+        let mut parent: Vec<usize> = Vec::new();
+        fn find(parent: &mut [usize], i: usize) -> usize {
+            let mut r = i;
+            while parent[r] != r {
+                r = parent[r];
+            }
+            parent[i] = r;
+            r
+        }
+        for (i, face) in covered.iter().enumerate() {
+            parent.push(i);
+            for &v in face {
+                if let Some(&j) = node_region.get(&v) {
+                    let (a, b) = (find(&mut parent, i), find(&mut parent, j));
+                    parent[a.max(b)] = a.min(b);
+                } else {
+                    node_region.insert(v, i);
+                }
+            }
+        }
+        let mut by_root: BTreeMap<usize, Vec<Vec<u32>>> = BTreeMap::new();
+        for (i, face) in covered.iter().enumerate() {
+            let r = find(&mut parent, i);
+            by_root.entry(r).or_default().push(face.clone());
+        }
+        regions.extend(by_root.into_values());
+        for region in regions {
+            if region.iter().flatten().any(|v| opening.contains(v)) {
+                continue;
+            }
+            // The largest face of the region (by the area of its key's polygon in any element).
+            let area = |this: &Self, k: &[u32]| -> Real {
+                let p: Vec<Point3<Real>> = k.iter().map(|&v| this.positions[v as usize]).collect();
+                planar_hull_area(&p)
+            };
+            let Some(target) = region.iter().max_by(|a, b| area(self, a).total_cmp(&area(self, b))).cloned() else {
+                continue;
+            };
+            let centroid = Point3::from(
+                target.iter().map(|&v| self.positions[v as usize].coords).sum::<Vector3<Real>>() / target.len() as Real,
+            );
+            let mut pocket = None;
+            for e in 0..self.elements.len() {
+                let Some(f) = self.elements[e].faces.iter().position(|face| key(face) == target) else { continue };
+                let node = *pocket.get_or_insert_with(|| {
+                    let row = (self.interpolate)(self.elements[e].parent, &centroid);
+                    self.add_node(centroid, row)
+                });
+                let face = self.elements[e].faces.remove(f);
+                self.elements[e].cut.remove(f);
+                for k in 0..face.len() {
+                    self.elements[e].faces.push(vec![node, face[k], face[(k + 1) % face.len()]]);
+                    self.elements[e].cut.push(Mark::NewCut);
+                }
+            }
+        }
+    }
+
+    /// Duplicates nodes per group of elements around them (the first group keeps the node) after
+    /// adding pockets where needed; returns, per new node, the node it copies.
+    pub fn separate(&mut self) -> Vec<(u32, u32)> {
+        let opening: HashSet<u32> = self.groups().into_keys().collect();
+        self.add_pockets(&opening);
+        let groups = self.groups();
+        let mut copies = Vec::new();
+        for (v, groups) in groups {
+            for group in groups.into_iter().skip(1) {
+                let p = self.positions[v as usize];
+                let copy = self.add_node(p, self.row(v));
+                copies.push((copy, v));
+                for e in group {
+                    for face in &mut self.elements[e].faces {
+                        for w in face.iter_mut().filter(|w| **w == v) {
+                            *w = copy;
+                        }
+                    }
+                }
+            }
+        }
+        copies
+    }
+
+    /// Whether this cut covered any face; the marks become `Cut` for the next one.
+    pub fn finish_marks(&mut self) -> bool {
+        let mut any = false;
+        for mark in self.elements.iter_mut().flat_map(|e| e.cut.iter_mut()) {
+            if *mark == Mark::NewCut {
+                *mark = Mark::Cut;
+                any = true;
+            }
+        }
+        any
+    }
+}
+
+/// Area of a planar polygon given in order (Newell).
+fn planar_hull_area(points: &[Point3<Real>]) -> Real {
+    let mut n = Vector3::zeros();
+    for k in 0..points.len() {
+        n += points[k].coords.cross(&points[(k + 1) % points.len()].coords);
+    }
+    n.norm() / 2.0
+}

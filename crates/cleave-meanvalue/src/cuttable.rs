@@ -1,0 +1,261 @@
+//! `Cuttable` for the mean value mesh (wicke2007 §5, docs/math/mean-value.md §7): a cut made on
+//! the element topology (`cut.rs`), the mesh rebuilt from it with rest matrices shared per shape,
+//! the new nodes carried by `DofRemap::Linear` (each the old element's coordinates at its rest
+//! position, so affine fields are carried exactly), pieces as elements joined through uncut
+//! faces, and the render surface as the faces that are boundary or cut.
+
+use crate::coordinates::{Workspace, mean_value_coordinates};
+use crate::cut::{CutElement, Mark, Row, Topology};
+use crate::mesh::MeanValueMesh;
+use crate::polyhedron::{ConvexPolyhedron, Real};
+use cleave_core::{
+    CutSurface, Cuttable, Discretization, DofRemap, EmbeddedSurface, Embedding, FrameRemap, Piece, Point3,
+    TopologyChange, TopologyError, Vector3,
+};
+use std::collections::HashMap;
+
+/// Weights below this are dropped from a new node's row (coordinates that vanish on a face).
+const ROW_EPSILON: Real = 1e-15;
+
+impl MeanValueMesh {
+    fn rest_point(&self, v: u32) -> Point3<Real> {
+        let i = 3 * v as usize;
+        Point3::new(self.rest[i], self.rest[i + 1], self.rest[i + 2])
+    }
+
+    /// The triangles of a cut surface, a plane as two triangles reaching well past the body.
+    fn cut_triangles(&self, surface: &CutSurface) -> Result<Vec<[Point3<Real>; 3]>, TopologyError> {
+        let finite = |p: &Point3<Real>| p.coords.iter().all(|c| c.is_finite());
+        match surface {
+            CutSurface::Plane { point, normal } => {
+                let length = normal.norm();
+                if !(length.is_finite() && length > 0.0 && finite(point)) {
+                    return Err(TopologyError::Invalid(format!(
+                        "a cutting plane needs a finite point and a nonzero normal, got {point:?} and {normal:?}"
+                    )));
+                }
+                let n = normal / length;
+                let (mut lo, mut hi) = (Vector3::repeat(Real::MAX), Vector3::repeat(Real::MIN));
+                for p in self.rest.chunks_exact(3) {
+                    let p = Vector3::new(p[0], p[1], p[2]);
+                    lo = lo.inf(&p);
+                    hi = hi.sup(&p);
+                }
+                let centre = (lo + hi) / 2.0;
+                let reach = 4.0 * (hi - lo).norm().max(Real::MIN_POSITIVE);
+                let o = Point3::from(centre - n * n.dot(&(centre - point.coords)));
+                let u = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+                let u = (u - n * n.dot(&u)).normalize() * reach;
+                let w = n.cross(&u);
+                let corners = [o - u - w, o + u - w, o + u + w, o - u + w];
+                Ok(vec![[corners[0], corners[1], corners[2]], [corners[0], corners[2], corners[3]]])
+            }
+            CutSurface::Triangles(triangles) => {
+                if let Some(t) = triangles.iter().find(|t| !t.iter().all(finite)) {
+                    return Err(TopologyError::Invalid(format!("a cut triangle has a non-finite vertex: {t:?}")));
+                }
+                Ok(triangles.clone())
+            }
+        }
+    }
+
+    /// The row of rest point `p` of element `e`: its mean value coordinates there.
+    fn row_at(&self, e: u32, p: &Point3<Real>) -> Row {
+        let element = &self.elements[e as usize];
+        let mut values = vec![0.0; element.nodes.len()];
+        mean_value_coordinates(&element.shape, p, &mut values, None, &mut Workspace::default());
+        element.nodes.iter().zip(&values).filter(|(_, w)| w.abs() > ROW_EPSILON).map(|(&n, &w)| (n, w)).collect()
+    }
+
+    /// Faces by their node sets: `(element, local face)` of each side.
+    fn face_sides(&self) -> HashMap<Vec<u32>, Vec<(usize, usize)>> {
+        let mut sides: HashMap<Vec<u32>, Vec<(usize, usize)>> = HashMap::new();
+        for (e, element) in self.elements.iter().enumerate() {
+            for (f, face) in element.shape.faces().iter().enumerate() {
+                let mut key: Vec<u32> = face.iter().map(|&i| element.nodes[i]).collect();
+                key.sort_unstable();
+                sides.entry(key).or_default().push((e, f));
+            }
+        }
+        sides
+    }
+
+    /// Piece index per element: elements joined through faces both share and no cut covers.
+    fn piece_of_elements(&self) -> (Vec<u32>, usize) {
+        let mut parent: Vec<usize> = (0..self.elements.len()).collect();
+        fn find(parent: &mut [usize], i: usize) -> usize {
+            let mut r = i;
+            while parent[r] != r {
+                r = parent[r];
+            }
+            parent[i] = r;
+            r
+        }
+        for sides in self.face_sides().values() {
+            if let [(a, fa), (b, fb)] = sides[..]
+                && !self.elements[a].cut[fa]
+                && !self.elements[b].cut[fb]
+            {
+                let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
+                parent[ra.max(rb)] = ra.min(rb);
+            }
+        }
+        let mut index: HashMap<usize, u32> = HashMap::new();
+        let mut piece = Vec::with_capacity(self.elements.len());
+        for e in 0..self.elements.len() {
+            let r = find(&mut parent, e);
+            let next = index.len() as u32;
+            piece.push(*index.entry(r).or_insert(next));
+        }
+        (piece, index.len())
+    }
+}
+
+/// Whether the polygon has a vertex on the straight line between its neighbours.
+fn has_straight_vertex(points: &[Point3<Real>]) -> bool {
+    let m = points.len();
+    let n = (0..m).fold(Vector3::zeros(), |n, k| n + points[k].coords.cross(&points[(k + 1) % m].coords));
+    let scale = n.norm();
+    (0..m).any(|k| {
+        let (a, b, c) = (points[(k + m - 1) % m], points[k], points[(k + 1) % m]);
+        (b - a).cross(&(c - b)).norm() <= 1e-9 * scale
+    })
+}
+
+impl Cuttable for MeanValueMesh {
+    fn cut(&mut self, surface: &CutSurface) -> Result<TopologyChange, TopologyError> {
+        let triangles = self.cut_triangles(surface)?;
+        let old_nodes = self.num_nodes();
+        let positions: Vec<Point3<Real>> = (0..old_nodes as u32).map(|v| self.rest_point(v)).collect();
+        let elements: Vec<CutElement> = self
+            .elements
+            .iter()
+            .enumerate()
+            .map(|(e, element)| CutElement {
+                faces: element.shape.faces().iter().map(|f| f.iter().map(|&i| element.nodes[i]).collect()).collect(),
+                cut: element.cut.iter().map(|&c| if c { Mark::Cut } else { Mark::Open }).collect(),
+                parent: e as u32,
+            })
+            .collect();
+        let interpolate = |e: u32, p: &Point3<Real>| self.row_at(e, p);
+        let mut topology = Topology::new(positions, elements, &interpolate);
+        for triangle in &triangles {
+            topology.cut_triangle(triangle).map_err(TopologyError::Invalid)?;
+        }
+        topology.separate();
+        let covered = topology.finish_marks();
+        if !covered && topology.positions.len() == old_nodes && topology.elements.len() == self.elements.len() {
+            return Ok(TopologyChange {
+                epoch: self.epoch,
+                remap: DofRemap::Identity,
+                frames: FrameRemap::Identity,
+                pattern_changed: false,
+            });
+        }
+        // The new elements, each on its nodes in order of first appearance.
+        let mut built = Vec::with_capacity(topology.elements.len());
+        for (e, element) in topology.elements.iter().enumerate() {
+            let mut nodes: Vec<u32> = Vec::new();
+            let mut local: HashMap<u32, usize> = HashMap::new();
+            let faces: Vec<Vec<usize>> = element
+                .faces
+                .iter()
+                .map(|face| {
+                    face.iter()
+                        .map(|&v| {
+                            *local.entry(v).or_insert_with(|| {
+                                nodes.push(v);
+                                nodes.len() - 1
+                            })
+                        })
+                        .collect()
+                })
+                .collect();
+            let points = nodes.iter().map(|&v| topology.positions[v as usize]).collect();
+            let shape = ConvexPolyhedron::new(points, faces)
+                .map_err(|err| TopologyError::Invalid(format!("element {e} after the cut: {err}")))?;
+            built.push((shape, nodes, element.cut.iter().map(|m| m.is_cut()).collect()));
+        }
+        let mut remap = Embedding::new();
+        for v in 0..topology.positions.len() {
+            if v < old_nodes {
+                remap.push_row(&[v as u32], &[1.0]);
+            } else {
+                let row = &topology.rows[v - old_nodes];
+                let (nodes, weights): (Vec<u32>, Vec<Real>) = row.iter().copied().unzip();
+                remap.push_row(&nodes, &weights);
+            }
+        }
+        let frames = FrameRemap::Gather(topology.elements.iter().map(|e| e.parent).collect());
+        let (material, refinement, epoch) = (self.material, self.refinement, self.epoch + 1);
+        let mut mesh = MeanValueMesh::with_cut_faces(material, topology.positions, built, refinement)
+            .map_err(|err| TopologyError::Invalid(format!("the cut mesh: {err}")))?;
+        mesh.epoch = epoch;
+        *self = mesh;
+        Ok(TopologyChange { epoch, remap: DofRemap::Linear(remap), frames, pattern_changed: true })
+    }
+
+    fn surface(&self) -> Option<EmbeddedSurface> {
+        let sides = self.face_sides();
+        let (piece_of, _) = self.piece_of_elements();
+        let mut surface = EmbeddedSurface::default();
+        let mut vertex_of: HashMap<u32, u32> = HashMap::new();
+        for (e, element) in self.elements.iter().enumerate() {
+            for (f, face) in element.shape.faces().iter().enumerate() {
+                let nodes: Vec<u32> = face.iter().map(|&i| element.nodes[i]).collect();
+                let mut key = nodes.clone();
+                key.sort_unstable();
+                if !element.cut[f] && sides[&key].len() == 2 {
+                    continue;
+                }
+                let mut vertex = |v: u32, surface: &mut EmbeddedSurface| {
+                    *vertex_of.entry(v).or_insert_with(|| {
+                        surface.rest_vertices.push(self.rest_point(v));
+                        surface.embedding.push_row(&[v], &[1.0]);
+                        (surface.rest_vertices.len() - 1) as u32
+                    })
+                };
+                let ids: Vec<u32> = nodes.iter().map(|&v| vertex(v, &mut surface)).collect();
+                let points: Vec<Point3<Real>> = nodes.iter().map(|&v| self.rest_point(v)).collect();
+                let push = |t: [u32; 3], surface: &mut EmbeddedSurface| {
+                    surface.triangles.push(t);
+                    surface.on_cut.push(element.cut[f]);
+                    surface.piece.push(piece_of[e]);
+                };
+                if ids.len() > 3 && has_straight_vertex(&points) {
+                    // A fan from the vertex average: no triangle of zero area at a straight vertex.
+                    let weight = 1.0 / nodes.len() as Real;
+                    let centre = points.iter().map(|p| p.coords).sum::<Vector3<Real>>() * weight;
+                    surface.rest_vertices.push(Point3::from(centre));
+                    surface.embedding.push_row(&nodes, &vec![weight; nodes.len()]);
+                    let c = (surface.rest_vertices.len() - 1) as u32;
+                    for k in 0..ids.len() {
+                        push([c, ids[k], ids[(k + 1) % ids.len()]], &mut surface);
+                    }
+                } else {
+                    for k in 1..ids.len() - 1 {
+                        push([ids[0], ids[k], ids[k + 1]], &mut surface);
+                    }
+                }
+            }
+        }
+        Some(surface)
+    }
+
+    fn pieces(&self) -> Vec<Piece> {
+        let (piece_of, count) = self.piece_of_elements();
+        let mut pieces = vec![Piece::default(); count];
+        for (e, element) in self.elements.iter().enumerate() {
+            let piece = &mut pieces[piece_of[e] as usize];
+            piece.elements.push(e as u32);
+            piece.nodes.extend(&element.nodes);
+            piece.volume += element.volume;
+        }
+        for piece in &mut pieces {
+            piece.nodes.sort_unstable();
+            piece.nodes.dedup();
+            piece.mass = piece.volume * self.material.density;
+        }
+        pieces
+    }
+}
