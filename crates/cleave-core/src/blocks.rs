@@ -28,8 +28,9 @@ use nalgebra::DMatrix;
 use rayon::prelude::*;
 
 /// Largest number of nodes one block may couple (a DG face block of two quadratic elements has
-/// 20); bounds the stack scratch of the kernels.
-pub const MAX_BLOCK_NODES: usize = 32;
+/// 20; a mean value element a blade has cut many times, 40 and more: wicke2007 reports 27 on its
+/// cut sequence); bounds the stack scratch of the kernels.
+pub const MAX_BLOCK_NODES: usize = 64;
 
 const NO_FRAME: u32 = u32::MAX;
 const NO_ANCHOR: u32 = u32::MAX;
@@ -38,7 +39,7 @@ const NO_ANCHOR: u32 = u32::MAX;
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum BlockSetError {
     /// Rest matrix of the wrong shape or not symmetric.
-    #[error("rest matrix {index} is {rows}x{cols}, must be square, a multiple of 3 and symmetric")]
+    #[error("rest matrix {index} is {rows}x{cols}, must be square, a multiple of 3, at most 3 × MAX_BLOCK_NODES (192) and symmetric")]
     BadRestMatrix {
         /// index it would get
         index: usize,

@@ -21,11 +21,19 @@ pub enum EmbedError {
 }
 
 /// Sparse rows of interpolation weights, CSR layout.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Embedding {
     offsets: Vec<u32>,
     nodes: Vec<u32>,
     weights: Vec<Real>,
+}
+
+/// The embedding with no rows (a derived default would lack the leading offset, and its first
+/// pushed row would be lost).
+impl Default for Embedding {
+    fn default() -> Self {
+        Self::new()
+    }
 }
 
 impl Embedding {
@@ -82,5 +90,19 @@ impl Embedding {
     pub fn evaluate(&self, x: &[Real], out: &mut Vec<Point3<Real>>) {
         out.clear();
         out.extend((0..self.len()).map(|i| self.point(x, i)));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_default_embedding_keeps_its_first_row() {
+        let mut e = Embedding::default();
+        assert!(e.is_empty());
+        e.push_row(&[3, 5], &[0.25, 0.75]);
+        assert_eq!(e.len(), 1);
+        assert_eq!(e.row(0), (&[3u32, 5][..], &[0.25, 0.75][..]));
     }
 }

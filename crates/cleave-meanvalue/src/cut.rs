@@ -77,36 +77,91 @@ impl Plane {
     }
 }
 
-/// A cut triangle prepared: its plane, the inward planes through its edges (perpendicular to it)
-/// and a 2D frame of its plane.
-struct CutTriangle {
+/// A convex cut polygon prepared: its plane, the inward planes through its edges (perpendicular
+/// to it) and its corners.
+struct CutPolygon {
     plane: Plane,
-    sides: [Plane; 3],
-    corners: [Point3<Real>; 3],
+    sides: Vec<Plane>,
+    corners: Vec<Point3<Real>>,
 }
 
-impl CutTriangle {
-    fn new(t: &[Point3<Real>; 3]) -> Option<Self> {
-        let normal = (t[1] - t[0]).cross(&(t[2] - t[0]));
-        let scale = [(t[1] - t[0]).norm(), (t[2] - t[1]).norm(), (t[0] - t[2]).norm()].into_iter().fold(0.0, Real::max);
+impl CutPolygon {
+    /// `None` for a polygon of (nearly) no area.
+    fn new(corners: &[Point3<Real>]) -> Option<Self> {
+        let m = corners.len();
+        let normal = (0..m).fold(Vector3::zeros(), |n, k| n + corners[k].coords.cross(&corners[(k + 1) % m].coords));
+        let scale = (0..m).map(|k| (corners[(k + 1) % m] - corners[k]).norm()).fold(0.0, Real::max);
         if !(normal.norm() > 1e-12 * scale * scale) {
             return None;
         }
         let n = normal.normalize();
-        let plane = Plane { n, offset: n.dot(&t[0].coords) };
-        let sides = std::array::from_fn(|i| {
-            let (a, b) = (t[i], t[(i + 1) % 3]);
-            let m = n.cross(&(b - a)).normalize();
-            Plane { n: m, offset: m.dot(&a.coords) }
-        });
-        Some(Self { plane, sides, corners: *t })
+        let plane = Plane { n, offset: n.dot(&corners[0].coords) };
+        let sides = (0..m)
+            .filter_map(|i| {
+                let (a, b) = (corners[i], corners[(i + 1) % m]);
+                let m = n.cross(&(b - a));
+                (m.norm() > 0.0).then(|| {
+                    let m = m.normalize();
+                    Plane { n: m, offset: m.dot(&a.coords) }
+                })
+            })
+            .collect();
+        Some(Self { plane, sides, corners: corners.to_vec() })
     }
 
     fn bounds(&self) -> (Point3<Real>, Point3<Real>) {
-        let lo = self.corners[0].inf(&self.corners[1]).inf(&self.corners[2]);
-        let hi = self.corners[0].sup(&self.corners[1]).sup(&self.corners[2]);
-        (lo, hi)
+        self.corners.iter().fold((self.corners[0], self.corners[0]), |(lo, hi), p| (lo.inf(p), hi.sup(p)))
     }
+}
+
+/// The soup's triangles, with each pair that shares an edge, lies in one plane, faces the same
+/// way and makes a convex quadrilateral merged into it (a blade's swept strips, a rectangle
+/// given as two triangles): a diagonal inside the cut would otherwise split every face in the
+/// plane it crosses, for nothing.
+pub(crate) fn cut_polygons(triangles: &[[Point3<Real>; 3]]) -> Vec<Vec<Point3<Real>>> {
+    let bits = |p: &Point3<Real>| p.coords.map(|c| c.to_bits());
+    let mut by_edge: HashMap<([u64; 3], [u64; 3]), Vec<usize>> = HashMap::new();
+    for (t, tri) in triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (bits(&tri[k]), bits(&tri[(k + 1) % 3]));
+            by_edge.entry((a.into(), b.into())).or_default().push(t);
+        }
+    }
+    let mut used = vec![false; triangles.len()];
+    let mut polygons = Vec::with_capacity(triangles.len());
+    for (t, tri) in triangles.iter().enumerate() {
+        if used[t] {
+            continue;
+        }
+        used[t] = true;
+        let mut merged = None;
+        'edges: for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            let Some(others) = by_edge.get(&(bits(&b).into(), bits(&a).into())) else { continue };
+            for &o in others {
+                if used[o] {
+                    continue;
+                }
+                let other = &triangles[o];
+                let Some(q) = other.iter().find(|p| bits(p) != bits(&a) && bits(p) != bits(&b)) else { continue };
+                let quad = [a, *q, b, tri[(k + 2) % 3]];
+                let n = (tri[1] - tri[0]).cross(&(tri[2] - tri[0]));
+                let scale = quad.iter().map(|p| (p - a).norm()).fold(0.0, Real::max);
+                let planar = n.dot(&(q - a)).abs() <= 1e-12 * n.norm() * scale;
+                let convex = (0..4).all(|i| {
+                    let (p0, p1, p2) = (quad[i], quad[(i + 1) % 4], quad[(i + 2) % 4]);
+                    n.dot(&(p1 - p0).cross(&(p2 - p1))) > 1e-9 * n.norm() * scale * scale
+                });
+                if planar && convex {
+                    used[o] = true;
+                    merged = Some(quad.to_vec());
+                    break 'edges;
+                }
+            }
+        }
+        polygons.push(merged.unwrap_or_else(|| tri.to_vec()));
+    }
+    polygons
 }
 
 /// The sorted node set of a face: the same for both sides of a shared face.
@@ -126,8 +181,8 @@ fn bounds_of(positions: &[Point3<Real>], element: &CutElement) -> (Point3<Real>,
 }
 
 /// Area of the part of the convex polygon `points` (in a plane with unit normal `n`) inside the
-/// three half-spaces `sides`: Sutherland–Hodgman clipping of its projection.
-fn area_inside(points: &[Point3<Real>], n: &Vector3<Real>, sides: &[Plane; 3]) -> Real {
+/// half-spaces `sides`: Sutherland–Hodgman clipping of its projection.
+fn area_inside(points: &[Point3<Real>], n: &Vector3<Real>, sides: &[Plane]) -> Real {
     let mut polygon: Vec<Point3<Real>> = points.to_vec();
     for side in sides {
         let mut clipped = Vec::with_capacity(polygon.len() + 2);
@@ -232,10 +287,10 @@ impl<'a> Topology<'a> {
         }
     }
 
-    /// Cuts along one triangle: splits the elements whose section by its plane meets it, splits
-    /// the faces in its plane by its edges, and covers those inside it.
-    pub fn cut_triangle(&mut self, triangle: &[Point3<Real>; 3]) -> Result<(), String> {
-        let Some(t) = CutTriangle::new(triangle) else { return Ok(()) };
+    /// Cuts along one convex polygon: splits the elements whose section by its plane meets it,
+    /// splits the faces in its plane by its edges, and covers those inside it.
+    pub fn cut_polygon(&mut self, polygon: &[Point3<Real>]) -> Result<(), String> {
+        let Some(t) = CutPolygon::new(polygon) else { return Ok(()) };
         let (lo, hi) = t.bounds();
         let mut near = self.near(&lo, &hi);
         // Elements crossed by the plane whose section meets the triangle.
@@ -628,6 +683,11 @@ impl<'a> Topology<'a> {
             }
         }
         copies
+    }
+
+    /// Distance from a plane under which a node counts as on it.
+    pub fn tolerance(&self) -> Real {
+        self.tolerance
     }
 
     /// Whether this cut covered any face; the marks become `Cut` for the next one.

@@ -5,8 +5,8 @@
 //! faces, and the render surface as the faces that are boundary or cut.
 
 use crate::coordinates::{Workspace, mean_value_coordinates};
-use crate::cut::{CutElement, Mark, Row, Topology};
-use crate::mesh::MeanValueMesh;
+use crate::cut::{CutElement, Mark, Row, Topology, cut_polygons};
+use crate::mesh::{CutReport, MeanValueMesh};
 use crate::polyhedron::{ConvexPolyhedron, Real};
 use cleave_core::{
     CutSurface, Cuttable, Discretization, DofRemap, EmbeddedSurface, Embedding, FrameRemap, Piece, Point3,
@@ -17,14 +17,163 @@ use std::collections::HashMap;
 /// Weights below this are dropped from a new node's row (coordinates that vanish on a face).
 const ROW_EPSILON: Real = 1e-15;
 
+/// The quality floor of an element made by a cut: its volume over its diameter cubed, scaled so
+/// that a cube has 1 (a regular tetrahedron 0.61). An element below it is merged into the
+/// neighbour across its largest uncut shared face with which it makes a convex element
+/// (mean-value.md §7.4).
+pub const QUALITY_FLOOR: Real = 1e-2;
+
+/// An element's quality (see [`QUALITY_FLOOR`]).
+pub fn quality(shape: &ConvexPolyhedron) -> Real {
+    shape.volume() * 27f64.sqrt() / shape.diameter().powi(3)
+}
+
+/// An element being rebuilt: its shape, global nodes, cut faces and parent.
+type Rebuilt = (ConvexPolyhedron, Vec<u32>, Vec<bool>, u32);
+
+/// The element of global faces `faces` (with their cut marks) over `positions`.
+fn element_of(
+    faces: &[Vec<u32>],
+    positions: &[Point3<Real>],
+    tolerance: Real,
+) -> Result<(ConvexPolyhedron, Vec<u32>), crate::PolyhedronError> {
+    let mut nodes: Vec<u32> = Vec::new();
+    let mut local: HashMap<u32, usize> = HashMap::new();
+    let local_faces: Vec<Vec<usize>> = faces
+        .iter()
+        .map(|face| {
+            face.iter()
+                .map(|&v| {
+                    *local.entry(v).or_insert_with(|| {
+                        nodes.push(v);
+                        nodes.len() - 1
+                    })
+                })
+                .collect()
+        })
+        .collect();
+    let points = nodes.iter().map(|&v| positions[v as usize]).collect();
+    Ok((ConvexPolyhedron::with_position_tolerance(points, local_faces, tolerance)?, nodes))
+}
+
+/// Global faces of a rebuilt element.
+fn global_faces(element: &Rebuilt) -> Vec<Vec<u32>> {
+    element.0.faces().iter().map(|f| f.iter().map(|&i| element.1[i]).collect()).collect()
+}
+
+/// Merges each element below [`QUALITY_FLOOR`], worst first, into the neighbour across an
+/// uncut shared face that makes the best convex union with it. Returns how many were merged and
+/// how many stay below the floor (no convex union).
+fn merge_slivers(elements: &mut Vec<Rebuilt>, positions: &[Point3<Real>], tolerance: Real) -> (usize, usize) {
+    let mut merged = 0;
+    // Passes until none merges: a union may itself be below the floor and merge again.
+    loop {
+        let pass = merge_pass(elements, positions, tolerance);
+        merged += pass;
+        if pass == 0 {
+            break;
+        }
+    }
+    (merged, elements.iter().filter(|e| quality(&e.0) < QUALITY_FLOOR).count())
+}
+
+/// One pass of [`merge_slivers`]: returns how many merged.
+fn merge_pass(elements: &mut Vec<Rebuilt>, positions: &[Point3<Real>], tolerance: Real) -> usize {
+    let key = |f: &[u32]| {
+        let mut k = f.to_vec();
+        k.sort_unstable();
+        k
+    };
+    let mut slivers: Vec<(Real, usize)> =
+        elements.iter().enumerate().map(|(e, el)| (quality(&el.0), e)).filter(|(q, _)| *q < QUALITY_FLOOR).collect();
+    if slivers.is_empty() {
+        return 0;
+    }
+    slivers.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let mut sides: HashMap<Vec<u32>, Vec<usize>> = HashMap::new();
+    for (e, element) in elements.iter().enumerate() {
+        for face in global_faces(element) {
+            sides.entry(key(&face)).or_default().push(e);
+        }
+    }
+    let mut dead = vec![false; elements.len()];
+    let mut merged = 0;
+    for &(_, s) in &slivers {
+        if dead[s] || quality(&elements[s].0) >= QUALITY_FLOOR {
+            continue;
+        }
+        let faces_s = global_faces(&elements[s]);
+        let mut best: Option<(Real, usize, Rebuilt)> = None;
+        let mut neighbours: Vec<usize> = Vec::new();
+        for (f, face) in faces_s.iter().enumerate() {
+            if elements[s].2[f] {
+                continue;
+            }
+            for &n in sides.get(&key(face)).into_iter().flatten() {
+                if n != s && !dead[n] && !neighbours.contains(&n) {
+                    neighbours.push(n);
+                }
+            }
+        }
+        for n in neighbours {
+            let faces_n = global_faces(&elements[n]);
+            let shared: Vec<Vec<u32>> = faces_s
+                .iter()
+                .enumerate()
+                .filter(|(f, face)| !elements[s].2[*f] && faces_n.iter().any(|g| key(g) == key(face)))
+                .map(|(_, face)| key(face))
+                .collect();
+            let keep = |faces: &[Vec<u32>], cut: &[bool]| -> Vec<(Vec<u32>, bool)> {
+                faces.iter().zip(cut).filter(|(f, _)| !shared.contains(&key(f))).map(|(f, &c)| (f.clone(), c)).collect()
+            };
+            let mut union = keep(&faces_s, &elements[s].2);
+            union.extend(keep(&faces_n, &elements[n].2));
+            let (union_faces, union_cut): (Vec<Vec<u32>>, Vec<bool>) = union.into_iter().unzip();
+            let Ok((shape, nodes)) = element_of(&union_faces, positions, tolerance) else { continue };
+            // Every node of both must remain a vertex of the union (a node only on the shared
+            // faces would be left without an element).
+            if nodes.len() < elements[s].1.iter().chain(&elements[n].1).collect::<std::collections::HashSet<_>>().len() {
+                continue;
+            }
+            let q = quality(&shape);
+            if best.as_ref().is_none_or(|(b, ..)| q > *b) {
+                best = Some((q, n, (shape, nodes, union_cut, elements[n].3)));
+            }
+        }
+        match best {
+            Some((_, n, union)) => {
+                for face in global_faces(&elements[n]).iter().chain(&faces_s) {
+                    if let Some(list) = sides.get_mut(&key(face)) {
+                        list.retain(|&e| e != n && e != s);
+                    }
+                }
+                for face in global_faces(&union) {
+                    sides.entry(key(&face)).or_default().push(n);
+                }
+                elements[n] = union;
+                dead[s] = true;
+                merged += 1;
+            }
+            None => {}
+        }
+    }
+    let mut index = 0;
+    elements.retain(|_| {
+        index += 1;
+        !dead[index - 1]
+    });
+    merged
+}
+
 impl MeanValueMesh {
     fn rest_point(&self, v: u32) -> Point3<Real> {
         let i = 3 * v as usize;
         Point3::new(self.rest[i], self.rest[i + 1], self.rest[i + 2])
     }
 
-    /// The triangles of a cut surface, a plane as two triangles reaching well past the body.
-    fn cut_triangles(&self, surface: &CutSurface) -> Result<Vec<[Point3<Real>; 3]>, TopologyError> {
+    /// The convex polygons of a cut surface: a plane as one square reaching well past the body, a
+    /// soup's triangles with coplanar convex pairs merged (`cut_polygons`).
+    fn cut_polygons(&self, surface: &CutSurface) -> Result<Vec<Vec<Point3<Real>>>, TopologyError> {
         let finite = |p: &Point3<Real>| p.coords.iter().all(|c| c.is_finite());
         match surface {
             CutSurface::Plane { point, normal } => {
@@ -47,14 +196,13 @@ impl MeanValueMesh {
                 let u = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
                 let u = (u - n * n.dot(&u)).normalize() * reach;
                 let w = n.cross(&u);
-                let corners = [o - u - w, o + u - w, o + u + w, o - u + w];
-                Ok(vec![[corners[0], corners[1], corners[2]], [corners[0], corners[2], corners[3]]])
+                Ok(vec![vec![o - u - w, o + u - w, o + u + w, o - u + w]])
             }
             CutSurface::Triangles(triangles) => {
                 if let Some(t) = triangles.iter().find(|t| !t.iter().all(finite)) {
                     return Err(TopologyError::Invalid(format!("a cut triangle has a non-finite vertex: {t:?}")));
                 }
-                Ok(triangles.clone())
+                Ok(cut_polygons(triangles))
             }
         }
     }
@@ -124,7 +272,7 @@ fn has_straight_vertex(points: &[Point3<Real>]) -> bool {
 
 impl Cuttable for MeanValueMesh {
     fn cut(&mut self, surface: &CutSurface) -> Result<TopologyChange, TopologyError> {
-        let triangles = self.cut_triangles(surface)?;
+        let polygons = self.cut_polygons(surface)?;
         let old_nodes = self.num_nodes();
         let positions: Vec<Point3<Real>> = (0..old_nodes as u32).map(|v| self.rest_point(v)).collect();
         let elements: Vec<CutElement> = self
@@ -139,8 +287,8 @@ impl Cuttable for MeanValueMesh {
             .collect();
         let interpolate = |e: u32, p: &Point3<Real>| self.row_at(e, p);
         let mut topology = Topology::new(positions, elements, &interpolate);
-        for triangle in &triangles {
-            topology.cut_triangle(triangle).map_err(TopologyError::Invalid)?;
+        for polygon in &polygons {
+            topology.cut_polygon(polygon).map_err(TopologyError::Invalid)?;
         }
         topology.separate();
         let covered = topology.finish_marks();
@@ -152,30 +300,15 @@ impl Cuttable for MeanValueMesh {
                 pattern_changed: false,
             });
         }
-        // The new elements, each on its nodes in order of first appearance.
-        let mut built = Vec::with_capacity(topology.elements.len());
+        // The new elements, each on its nodes in order of first appearance, slivers merged.
+        let mut built: Vec<Rebuilt> = Vec::with_capacity(topology.elements.len());
         for (e, element) in topology.elements.iter().enumerate() {
-            let mut nodes: Vec<u32> = Vec::new();
-            let mut local: HashMap<u32, usize> = HashMap::new();
-            let faces: Vec<Vec<usize>> = element
-                .faces
-                .iter()
-                .map(|face| {
-                    face.iter()
-                        .map(|&v| {
-                            *local.entry(v).or_insert_with(|| {
-                                nodes.push(v);
-                                nodes.len() - 1
-                            })
-                        })
-                        .collect()
-                })
-                .collect();
-            let points = nodes.iter().map(|&v| topology.positions[v as usize]).collect();
-            let shape = ConvexPolyhedron::new(points, faces)
+            let (shape, nodes) = element_of(&element.faces, &topology.positions, topology.tolerance())
                 .map_err(|err| TopologyError::Invalid(format!("element {e} after the cut: {err}")))?;
-            built.push((shape, nodes, element.cut.iter().map(|m| m.is_cut()).collect()));
+            built.push((shape, nodes, element.cut.iter().map(|m| m.is_cut()).collect(), element.parent));
         }
+        let (merged, left) = merge_slivers(&mut built, &topology.positions, topology.tolerance());
+        let report = CutReport { merged, below_floor: left };
         let mut remap = Embedding::new();
         for v in 0..topology.positions.len() {
             if v < old_nodes {
@@ -186,11 +319,13 @@ impl Cuttable for MeanValueMesh {
                 remap.push_row(&nodes, &weights);
             }
         }
-        let frames = FrameRemap::Gather(topology.elements.iter().map(|e| e.parent).collect());
+        let frames = FrameRemap::Gather(built.iter().map(|e| e.3).collect());
+        let built = built.into_iter().map(|(shape, nodes, cut, _)| (shape, nodes, cut)).collect();
         let (material, refinement, epoch) = (self.material, self.refinement, self.epoch + 1);
-        let mut mesh = MeanValueMesh::with_cut_faces(material, topology.positions, built, refinement)
+        let mut mesh = MeanValueMesh::with_cut_faces(material, topology.positions, built, refinement, Some(self))
             .map_err(|err| TopologyError::Invalid(format!("the cut mesh: {err}")))?;
         mesh.epoch = epoch;
+        mesh.last_cut = report;
         *self = mesh;
         Ok(TopologyChange { epoch, remap: DofRemap::Linear(remap), frames, pattern_changed: true })
     }

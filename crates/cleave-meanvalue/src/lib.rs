@@ -24,6 +24,7 @@ pub mod polyhedron;
 
 pub use coordinates::{BOUNDARY_TOLERANCE, GRADIENT_INSET, Workspace, mean_value_coordinates};
 pub use element::{ElementIntegrals, quadrature};
-pub use mesh::{DEFAULT_REFINEMENT, MeanValueError, MeanValueMesh};
+pub use cuttable::{QUALITY_FLOOR, quality};
+pub use mesh::{CutReport, DEFAULT_REFINEMENT, MeanValueError, MeanValueMesh};
 pub use cut::ON_PLANE_TOLERANCE;
 pub use polyhedron::{ConvexPolyhedron, GEOMETRY_TOLERANCE, PolyhedronError};

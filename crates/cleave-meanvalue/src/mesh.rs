@@ -67,6 +67,15 @@ pub enum MeanValueError {
     },
 }
 
+/// What a cut's sliver merging did (`MeanValueMesh::last_cut`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CutReport {
+    /// Elements below the quality floor merged into a neighbour.
+    pub merged: usize,
+    /// Elements left below the floor (no convex union with a neighbour).
+    pub below_floor: usize,
+}
+
 /// One element: its polyhedron, its nodes, and what the steps need of its integrals.
 #[derive(Clone, Debug)]
 pub(crate) struct Element {
@@ -91,6 +100,12 @@ pub struct MeanValueMesh {
     blocks: BlockSet,
     pub(crate) refinement: u32,
     pub(crate) epoch: u64,
+    /// What the last cut's sliver merging did.
+    pub(crate) last_cut: CutReport,
+    /// The integrals of each shape (up to translation) and its rest matrix's id in `blocks`.
+    library: HashMap<ShapeKey, SharedIntegrals>,
+    /// The length unit of the shape keys.
+    quantum: Real,
     /// Element bounding boxes and a uniform grid over them, for `embed`.
     locator: Locator,
 }
@@ -209,7 +224,7 @@ impl MeanValueMesh {
                 (shape, nodes, cut)
             })
             .collect();
-        Self::with_cut_faces(material, rest, elements, refinement)
+        Self::with_cut_faces(material, rest, elements, refinement, None)
     }
 
     /// [`MeanValueMesh::new`] with the faces that lie on a cut flagged per element (they are
@@ -219,14 +234,19 @@ impl MeanValueMesh {
         rest: Vec<Point3<Real>>,
         elements: Vec<(ConvexPolyhedron, Vec<u32>, Vec<bool>)>,
         refinement: u32,
+        previous: Option<&MeanValueMesh>,
     ) -> Result<Self, MeanValueError> {
         let nodes = rest.len();
         let (lambda, mu) = material.lame();
         let mut builder = BlockSetBuilder::new().translation_invariant();
         let mut library: HashMap<ShapeKey, SharedIntegrals> = HashMap::new();
         let mut built = Vec::with_capacity(elements.len());
-        // 2⁻⁴⁰ of the largest element: translated copies share a key, round-off aside.
-        let quantum = elements.iter().map(|(shape, ..)| shape.diameter()).fold(0.0, Real::max) / (1u64 << 40) as Real;
+        // 2⁻⁴⁰ of the largest element: translated copies share a key, round-off aside (kept
+        // across cuts, so unchanged elements find their shapes again).
+        let quantum = previous.map_or_else(
+            || elements.iter().map(|(shape, ..)| shape.diameter()).fold(0.0, Real::max) / (1u64 << 40) as Real,
+            |p| p.quantum,
+        );
         let mut lumped = vec![0.0; 3 * nodes];
         for (e, (shape, element_nodes, cut)) in elements.into_iter().enumerate() {
             if let Some(&node) = element_nodes.iter().find(|&&n| n as usize >= nodes) {
@@ -246,11 +266,22 @@ impl MeanValueMesh {
             let (rest_id, boundary_gradients, shifts, shape_integrals) = match library.get(&key) {
                 Some(entry) => entry.clone(),
                 None => {
-                    let integrals = ElementIntegrals::new(&shape, refinement);
-                    let stiffness: DMatrix<Real> = integrals.stiffness(lambda, mu);
+                    // A shape the mesh before this cut had keeps its integrals (only the elements
+                    // a cut made are integrated).
+                    let (stiffness, boundary_gradients, shifts, shape_integrals) =
+                        match previous.and_then(|p| p.library.get(&key).map(|entry| (p, entry))) {
+                            Some((p, (id, bg, sh, si))) => {
+                                (p.blocks.rest_matrices()[*id as usize].clone(), bg.clone(), sh.clone(), si.clone())
+                            }
+                            None => {
+                                let integrals = ElementIntegrals::new(&shape, refinement);
+                                let stiffness: DMatrix<Real> = integrals.stiffness(lambda, mu);
+                                let shifts = integrals.shifts();
+                                (stiffness, integrals.boundary_gradients, shifts, integrals.shape_integrals)
+                            }
+                        };
                     let id = builder.add_rest_matrix(stiffness)?;
-                    let entry =
-                        (id, integrals.boundary_gradients.clone(), integrals.shifts(), integrals.shape_integrals);
+                    let entry = (id, boundary_gradients, shifts, shape_integrals);
                     library.insert(key, entry.clone());
                     entry
                 }
@@ -275,7 +306,10 @@ impl MeanValueMesh {
             blocks,
             refinement,
             epoch: 0,
+            last_cut: CutReport::default(),
             locator,
+            library,
+            quantum,
         })
     }
 
@@ -311,6 +345,11 @@ impl MeanValueMesh {
             }
         }
         Self::new(material, rest, elements, DEFAULT_REFINEMENT)
+    }
+
+    /// What the last cut's sliver merging did.
+    pub fn last_cut(&self) -> CutReport {
+        self.last_cut
     }
 
     /// Number of elements.

@@ -95,6 +95,18 @@ fn newell(points: impl Iterator<Item = Point3<Real>> + Clone) -> Vector3<Real> {
 impl ConvexPolyhedron {
     /// Validates and builds the element.
     pub fn new(vertices: Vec<Point3<Real>>, faces: Vec<Vec<usize>>) -> Result<Self, PolyhedronError> {
+        Self::with_position_tolerance(vertices, faces, 0.0)
+    }
+
+    /// [`ConvexPolyhedron::new`] for vertices known only to `position` (a cut takes a node within
+    /// its on-plane tolerance as on the plane): a face's plane is then uncertain by `position`
+    /// over its width (twice its area over its longest edge), and the convexity test allows a
+    /// vertex that much farther out, in proportion to its distance (a thin face's plane tilts).
+    pub fn with_position_tolerance(
+        vertices: Vec<Point3<Real>>,
+        faces: Vec<Vec<usize>>,
+        position: Real,
+    ) -> Result<Self, PolyhedronError> {
         if vertices.len() < 4 || faces.len() < 4 {
             return Err(PolyhedronError::TooSmall { vertices: vertices.len(), faces: faces.len() });
         }
@@ -111,6 +123,8 @@ impl ConvexPolyhedron {
         }
         let tolerance = GEOMETRY_TOLERANCE * diameter;
         let mut normals = Vec::with_capacity(faces.len());
+        // Per face: how far its plane may tilt (radians) when its vertices are off by `position`.
+        let mut tilts: Vec<Real> = Vec::with_capacity(faces.len());
         let mut planarity: Real = 0.0;
         for (f, face) in faces.iter().enumerate() {
             let n = newell(face.iter().map(|&v| vertices[v]));
@@ -123,7 +137,7 @@ impl ConvexPolyhedron {
             for &v in face {
                 let distance = n.dot(&(vertices[v] - origin));
                 planarity = planarity.max(distance.abs());
-                if distance.abs() > tolerance {
+                if distance.abs() > tolerance + position {
                     return Err(PolyhedronError::NotPlanar { face: f, vertex: v, distance });
                 }
             }
@@ -137,12 +151,16 @@ impl ConvexPolyhedron {
                 }
             }
             normals.push(n);
+            let longest = (0..face.len())
+                .map(|k| (vertices[face[(k + 1) % face.len()]] - vertices[face[k]]).norm())
+                .fold(0.0, Real::max);
+            tilts.push(2.0 * position * longest / length.max(Real::MIN_POSITIVE));
         }
         for (f, face) in faces.iter().enumerate() {
             let origin = vertices[face[0]];
             for (v, p) in vertices.iter().enumerate() {
                 let distance = normals[f].dot(&(p - origin));
-                if distance > tolerance {
+                if distance > tolerance + position + tilts[f] * (p - origin).norm() {
                     return Err(PolyhedronError::NotConvex { face: f, vertex: v, distance });
                 }
             }

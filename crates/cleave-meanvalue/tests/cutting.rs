@@ -2,7 +2,7 @@
 //! off the axes, the conformance suite on a cut body, and the counts of the paper's Fig. 9 block.
 
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real, Vector3};
-use cleave_meanvalue::{ConvexPolyhedron, MeanValueMesh};
+use cleave_meanvalue::{ConvexPolyhedron, MeanValueMesh, QUALITY_FLOOR, quality};
 use cleave_testkit::cut_conformance::{CutBody, CutSubject, Transfer, cut_conformance};
 use cleave_testkit::{assert_all_pass, conformance_suite};
 use nalgebra::Isometry3;
@@ -120,4 +120,52 @@ fn cuts_keep_the_cut_contract() {
         println!("{}: {:.3e} (tolerance {:.1e})", c.name, c.error, c.tolerance);
     }
     assert_all_pass(&checks);
+}
+
+#[test]
+fn random_cut_sequences_never_panic_and_keep_every_element_valid() {
+    let mut random = cleave_testkit::Lcg::new(3);
+    let (mut failed, mut cuts, mut worst) = (0usize, 0usize, Real::MAX);
+    let (mut merged, mut below) = (0, 0);
+    for round in 0..6 {
+        let mut mesh = moved_box(Point3::new(0.0, 0.0, 0.0), 0.1, [4, 3, 3], &Isometry3::identity());
+        let volume: Real = mesh.pieces().iter().map(|p| p.volume).sum();
+        for _ in 0..6 {
+            let centre = Point3::new(0.2, 0.15, 0.15) + Vector3::new(random.next(), random.next(), random.next()) * 0.15;
+            let soup: Vec<[Point3<Real>; 3]> = (0..3)
+                .map(|_| {
+                    let mut p = || centre + Vector3::new(random.next(), random.next(), random.next()) * 0.25;
+                    [p(), p(), p()]
+                })
+                .collect();
+            let surface = if round % 2 == 0 {
+                CutSurface::Triangles(soup)
+            } else {
+                CutSurface::Plane { point: centre, normal: Vector3::new(random.next(), random.next(), random.next()) }
+            };
+            cuts += 1;
+            match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| mesh.cut(&surface))) {
+                Err(_) => panic!("a cut panicked"),
+                Ok(Err(e)) => {
+                    failed += 1;
+                    println!("refused: {e}");
+                }
+                Ok(Ok(_)) => {
+                    merged += mesh.last_cut().merged;
+                    below += mesh.last_cut().below_floor;
+                }
+            }
+            let after: Real = mesh.pieces().iter().map(|p| p.volume).sum();
+            assert!(((after - volume) / volume).abs() < 1e-12);
+            for e in 0..mesh.num_elements() {
+                worst = worst.min(quality(mesh.element(e).0));
+            }
+        }
+        println!("round {round}: {} elements, {} nodes, {} pieces", mesh.num_elements(), mesh.num_nodes(), mesh.pieces().len());
+    }
+    println!("{failed} of {cuts} cuts refused; {merged} slivers merged, {below} left below {QUALITY_FLOOR}; worst element quality {worst:.3e}");
+    // Measured: none refused, 13 merged, one left at 7.4e-3 (no neighbour makes a convex
+    // element with it). Without merging the worst is 1.1e-3.
+    assert_eq!(failed, 0);
+    assert!(worst > 5e-3, "worst element quality {worst}");
 }

@@ -1,15 +1,34 @@
 //! The mean value backend (wicke2007): FEM on convex polyhedra with 3D mean value shape
 //! functions (`cleave-meanvalue`). Nodal, so Dirichlet data and pins are imposed strongly. Built
-//! so far on boxes of cuboid cells (the comparison problems and box scenes); it does not yet
-//! mesh closed surfaces or cut (issue 36).
+//! on boxes of cuboid cells (the comparison problems and box scenes), cut by splitting elements
+//! (the cut cantilever, the cut cells of the stability grid, scenes); it does not yet mesh
+//! closed surfaces (issue 36).
 
 use crate::backend::{Backend, BackendError, BuiltSolid, Shape, SolidRequest, box_dims, parse_settings};
-use cleave_core::{Discretization, Material, Point3, Real};
+use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real};
 use cleave_meanvalue::MeanValueMesh;
 use cleave_testkit::compare::{
-    BoxGrid, BuildError, BuiltProblem, CompareBackend, DirichletSpec, ExtremeCase, NotApplicable, corner_pushed_in,
-    nodal_problem, stretch_start,
+    BoxGrid, BuildError, BuiltProblem, CompareBackend, CutError, CutProblem, DirichletSpec, ExtremeCase,
+    NotApplicable, corner_pushed_in, nodal_problem, stretch_start,
 };
+use cleave_testkit::problems::nodal_dirichlet;
+
+/// Distance of the sliver beam's crack plane from the node plane it is next to, in units of the
+/// cell edge `h`: the elements it crosses leave slabs 1e-5 h thick.
+pub const SLIVER_OFFSET: Real = 1e-5;
+
+/// The stability grid's sliver case for mean value elements, whose slivers come from cuts: the
+/// box of cuboids cracked by the plane x = x₀ + [`SLIVER_OFFSET`]·h (x₀ the node plane nearest
+/// the middle) from 40 % of its height up through the top, as for virtual node tetrahedra. One
+/// piece, with a column of cells split into a slab 1e-5 h thick and the rest.
+pub fn sliver_beam(material: &Material, grid: &BoxGrid) -> Result<MeanValueMesh, String> {
+    let (lo, hi) = (grid.origin, grid.max_corner());
+    let x = lo.x + (grid.dims[0] / 2) as Real * grid.h + SLIVER_OFFSET * grid.h;
+    let mut mesh = MeanValueMesh::from_box(*material, lo, grid.h, grid.dims).map_err(|e| e.to_string())?;
+    let crack = cleave_testkit::problems::crack::half_plane(&lo, &hi, x, lo.z + 0.4 * (hi.z - lo.z), grid.h);
+    mesh.cut(&crack).map_err(|e| format!("cracking the sliver beam: {e}"))?;
+    Ok(mesh)
+}
 
 /// Registration of `cleave-meanvalue`: one variant, mean value coordinates with the polygon face
 /// rule (docs/math/mean-value.md §2.3).
@@ -39,6 +58,62 @@ impl CompareBackend for MeanValueBackend {
         Ok(nodal_problem(Box::new(mesh), elements, dirichlet))
     }
 
+    fn cuts(&self, _variant: &str) -> bool {
+        true
+    }
+
+    /// The box cut by `surface` with `Cuttable::cut` (what scenes call), the Dirichlet data
+    /// resolved on the cut mesh.
+    fn build_cut_box(
+        &self,
+        variant: &str,
+        material: &Material,
+        grid: &BoxGrid,
+        dirichlet: &DirichletSpec,
+        surface: &CutSurface,
+    ) -> Result<CutProblem, CutError> {
+        crate::only_variant("meanvalue", variant, "polygon").map_err(|e| CutError::Build(e.0))?;
+        let mut mesh = MeanValueMesh::from_box(*material, grid.origin, grid.h, grid.dims)
+            .map_err(|e| CutError::Build(e.to_string()))?;
+        let change = mesh.cut(surface).map_err(|e| CutError::Build(e.to_string()))?;
+        let elements = mesh.num_elements();
+        let prescribed = nodal_dirichlet(&mesh, dirichlet.region, dirichlet.value);
+        let built = BuiltProblem {
+            discretization: Box::new(mesh),
+            prescribed,
+            dirichlet_load: Vec::new(),
+            elements,
+            search_seconds: 0.0,
+        };
+        Ok(CutProblem { built, change })
+    }
+
+    /// Uncut cells are all the same cube, so the sliver case cracks the beam first
+    /// ([`sliver_beam`]).
+    fn build_extreme(
+        &self,
+        variant: &str,
+        case: ExtremeCase,
+        material: &Material,
+        grid: &BoxGrid,
+        dirichlet: &DirichletSpec,
+    ) -> Result<Option<BuiltProblem>, BuildError> {
+        if case != ExtremeCase::Sliver {
+            return Ok(None);
+        }
+        crate::only_variant("meanvalue", variant, "polygon")?;
+        let mesh = sliver_beam(material, grid).map_err(BuildError)?;
+        let elements = mesh.num_elements();
+        let prescribed = nodal_dirichlet(&mesh, dirichlet.region, dirichlet.value);
+        Ok(Some(BuiltProblem {
+            discretization: Box::new(mesh),
+            prescribed,
+            dirichlet_load: Vec::new(),
+            elements,
+            search_seconds: 0.0,
+        }))
+    }
+
     fn extreme_start(
         &self,
         _variant: &str,
@@ -48,7 +123,8 @@ impl CompareBackend for MeanValueBackend {
     ) -> Result<Vec<Real>, NotApplicable> {
         match case {
             ExtremeCase::PreInverted => corner_pushed_in(built, grid),
-            ExtremeCase::Sliver => Err(NotApplicable("slivers come from cutting, which is not built yet".into())),
+            // The sliver beam of `build_extreme`, at rest.
+            ExtremeCase::Sliver => Ok(built.discretization.rest_dofs().to_vec()),
             ExtremeCase::Stretch100 => Ok(stretch_start(built, grid)),
         }
     }
@@ -65,7 +141,7 @@ struct MeanValueSettings {
 
 impl Backend for MeanValueBackend {
     fn summary(&self) -> &str {
-        "FEM on convex polyhedra, 3D mean value shape functions (Wicke, Botsch, Gross 2007); boxes only so far"
+        "FEM on convex polyhedra, 3D mean value shape functions, cut by splitting elements (Wicke, Botsch, Gross 2007); boxes only so far"
     }
 
     fn build_solid(&self, settings: &str, request: &SolidRequest) -> Result<BuiltSolid, BackendError> {
