@@ -81,6 +81,19 @@ impl InsideTester {
         Ok(Self { trimesh })
     }
 
+    /// The signed distance from `p` to the surface: negative inside, positive outside (the
+    /// nearest point by the tree; the side by pseudo-normals, as [`InsideTester::contains`]);
+    /// NaN for non-finite `p`.
+    pub fn signed_distance(&self, p: &Point3<f64>) -> f64 {
+        if !p.iter().all(|x| x.is_finite()) {
+            return f64::NAN;
+        }
+        let q = Vector::new(p.x, p.y, p.z);
+        let projection = self.trimesh.project_local_point(q, false);
+        let distance = (projection.point - q).length();
+        if projection.is_inside { -distance } else { distance }
+    }
+
     /// Whether `p` is inside (or on) the surface; `false` for non-finite `p`.
     pub fn contains(&self, p: &Point3<f64>) -> bool {
         if !p.iter().all(|x| x.is_finite()) {
@@ -110,5 +123,20 @@ mod tests {
         let inward: Vec<Vec<Point3<f64>>> = faces.iter().map(|f| f.iter().rev().copied().collect()).collect();
         let inside = polygon_winding_number(inward.iter().map(Vec::as_slice), &Point3::new(0.5, 0.5, 0.5));
         assert!((inside + 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_signed_distance_to_a_cube_is_the_depth_below_its_nearest_face() {
+        let corner = |i: usize| Point3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64);
+        let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+        let triangles = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).map(|t| t.map(|i| i as u32));
+        let mesh = TriangleMesh::new((0..8).map(corner).collect(), triangles.collect());
+        let tester = InsideTester::new(&mesh).unwrap();
+        assert!((tester.signed_distance(&Point3::new(0.3, 0.6, 0.2)) + 0.2).abs() < 1e-15);
+        assert!((tester.signed_distance(&Point3::new(0.5, 0.5, 0.5)) + 0.5).abs() < 1e-15);
+        // Outside: beyond a face, and beyond a corner (the distance to the corner).
+        assert!((tester.signed_distance(&Point3::new(1.7, 0.5, 0.5)) - 0.7).abs() < 1e-15);
+        assert!((tester.signed_distance(&Point3::new(2.0, 2.0, 2.0)) - 3f64.sqrt()).abs() < 1e-15);
+        assert!(tester.signed_distance(&Point3::new(f64::NAN, 0.0, 0.0)).is_nan());
     }
 }

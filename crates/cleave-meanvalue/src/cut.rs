@@ -18,7 +18,7 @@ use crate::polyhedron::Real;
 
 /// Distance from a cutting plane, relative to the largest element diameter, under which a node
 /// counts as on it (round-off of nodes computed on earlier cuts).
-pub const ON_PLANE_TOLERANCE: Real = 1e-12;
+pub const ON_PLANE_TOLERANCE: Real = 1e-8;
 
 /// One element of the topology being cut: faces as cycles of global nodes (counter-clockwise
 /// from outside), which faces lie on a cut, and the element of the mesh before this cut that
@@ -55,6 +55,8 @@ pub(crate) struct Topology<'a> {
     pub positions: Vec<Point3<Real>>,
     /// Rows of nodes created by this cut (index − `old_nodes`).
     pub rows: Vec<Row>,
+    /// Elements a plane crossed but whose section was degenerate (kept whole, faces split).
+    pub degenerate: usize,
     pub old_nodes: usize,
     pub elements: Vec<CutElement>,
     boxes: Vec<(Point3<Real>, Point3<Real>)>,
@@ -245,6 +247,7 @@ impl<'a> Topology<'a> {
             old_nodes: positions.len(),
             positions,
             rows: Vec::new(),
+            degenerate: 0,
             elements,
             boxes,
             largest,
@@ -293,35 +296,7 @@ impl<'a> Topology<'a> {
         let Some(t) = CutPolygon::new(polygon) else { return Ok(()) };
         let (lo, hi) = t.bounds();
         let mut near = self.near(&lo, &hi);
-        // Elements crossed by the plane whose section meets the triangle.
-        let mut to_split = Vec::new();
-        for &e in &near {
-            let element = &self.elements[e];
-            let nodes: Vec<u32> = element.faces.iter().flatten().copied().collect();
-            let sides: Vec<i8> = nodes.iter().map(|&v| self.side(&t.plane, v)).collect();
-            if !(sides.contains(&1) && sides.contains(&-1)) {
-                continue;
-            }
-            let mut section: Vec<Point3<Real>> = Vec::new();
-            for face in &element.faces {
-                for k in 0..face.len() {
-                    let (a, b) = (face[k], face[(k + 1) % face.len()]);
-                    let (sa, sb) = (self.side(&t.plane, a), self.side(&t.plane, b));
-                    if sa == 0 {
-                        section.push(self.positions[a as usize]);
-                    } else if sa * sb < 0 {
-                        let (pa, pb) = (self.positions[a as usize], self.positions[b as usize]);
-                        let (da, db) = (t.plane.distance(&pa), t.plane.distance(&pb));
-                        section.push(pa + (pb - pa) * (da / (da - db)));
-                    }
-                }
-            }
-            let hull = planar_hull(&section, &t.plane.n);
-            if hull.len() >= 3 && area_inside(&hull, &t.plane.n, &t.sides) > self.tolerance * self.largest {
-                to_split.push(e);
-            }
-        }
-        self.split(&mut near, &t.plane, &to_split, &HashSet::new())?;
+        self.split_section(&t, &mut near)?;
         // The faces in the plane that the triangle overlaps, split by its edges' planes.
         for side in &t.sides {
             let faces: HashSet<Vec<u32>> = self
@@ -354,6 +329,50 @@ impl<'a> Topology<'a> {
             }
         }
         Ok(())
+    }
+
+    /// The section of element `e` by `plane`: the convex hull of its nodes on the plane and its
+    /// edges' crossings, counter-clockwise about the plane's normal; `None` unless the plane
+    /// crosses the element.
+    fn section(&self, e: usize, plane: &Plane) -> Option<Vec<Point3<Real>>> {
+        let element = &self.elements[e];
+        let sides: Vec<i8> = element.faces.iter().flatten().map(|&v| self.side(plane, v)).collect();
+        if !(sides.contains(&1) && sides.contains(&-1)) {
+            return None;
+        }
+        let mut points: Vec<Point3<Real>> = Vec::new();
+        for face in &element.faces {
+            for k in 0..face.len() {
+                let (a, b) = (face[k], face[(k + 1) % face.len()]);
+                let (sa, sb) = (self.side(plane, a), self.side(plane, b));
+                if sa == 0 {
+                    points.push(self.positions[a as usize]);
+                } else if sa * sb < 0 {
+                    let (pa, pb) = (self.positions[a as usize], self.positions[b as usize]);
+                    let (da, db) = (plane.distance(&pa), plane.distance(&pb));
+                    points.push(pa + (pb - pa) * (da / (da - db)));
+                }
+            }
+        }
+        let hull = planar_hull(&points, &plane.n);
+        (hull.len() >= 3).then_some(hull)
+    }
+
+    /// The elements of `near` whose section by the polygon's plane meets it (with area).
+    fn meeting(&self, t: &CutPolygon, near: &[usize]) -> Vec<(usize, Vec<Point3<Real>>)> {
+        near.iter()
+            .filter_map(|&e| {
+                let hull = self.section(e, &t.plane)?;
+                (area_inside(&hull, &t.plane.n, &t.sides) > self.tolerance * self.largest).then_some((e, hull))
+            })
+            .collect()
+    }
+
+    /// Splits the elements of `near` whose section by the polygon's plane meets the polygon
+    /// (wicke2007 §5.1); the parts are appended to `near`.
+    fn split_section(&mut self, t: &CutPolygon, near: &mut Vec<usize>) -> Result<(), String> {
+        let to_split: Vec<usize> = self.meeting(t, near).into_iter().map(|(e, _)| e).collect();
+        self.split(near, &t.plane, &to_split, &HashSet::new())
     }
 
     /// The faces of `elements` with every node on `plane`.
@@ -435,61 +454,23 @@ impl<'a> Topology<'a> {
                 }
                 inserted.push((out, cut, to));
             }
-            let part = |this: &Self, face: &[u32], keep: i8| -> Option<Vec<u32>> {
-                let out: Vec<u32> = face.iter().copied().filter(|&v| this.side(plane, v) != -keep).collect();
-                (out.len() >= 3 && out.iter().any(|&v| this.side(plane, v) == keep)).then_some(out)
-            };
-            if split_set.contains(&e) {
-                let mut parts = Vec::with_capacity(2);
-                for keep in [-1i8, 1] {
-                    let (mut faces, mut cut) = (Vec::new(), Vec::new());
-                    let mut cap_edges: HashMap<u32, u32> = HashMap::new();
-                    for (face, c, _) in &inserted {
-                        let Some(p) = part(self, face, keep) else { continue };
-                        for k in 0..p.len() {
-                            let (a, b) = (p[k], p[(k + 1) % p.len()]);
-                            if self.side(plane, a) == 0 && self.side(plane, b) == 0 {
-                                if cap_edges.insert(b, a).is_some() {
-                                    return Err(format!("element {e}: its section by a cutting plane is not a polygon"));
-                                }
-                            }
-                        }
-                        faces.push(p);
-                        cut.push(*c);
-                    }
-                    let Some((&start, _)) = cap_edges.iter().min_by_key(|(a, _)| **a) else {
-                        return Err(format!("element {e}: no section by a cutting plane"));
-                    };
-                    let mut cap = vec![start];
-                    let mut current = cap_edges[&start];
-                    while current != start {
-                        if cap.len() > cap_edges.len() {
-                            return Err(format!("element {e}: its section by a cutting plane is not closed"));
-                        }
-                        cap.push(current);
-                        current = *cap_edges
-                            .get(&current)
-                            .ok_or_else(|| format!("element {e}: its section by a cutting plane is open"))?;
-                    }
-                    if cap.len() != cap_edges.len() || cap.len() < 3 {
-                        return Err(format!("element {e}: its section by a cutting plane is not one polygon"));
-                    }
-                    faces.push(cap);
-                    cut.push(Mark::Open);
-                    parts.push((faces, cut));
-                }
+            let parts = if split_set.contains(&e) { self.split_parts(plane, &inserted) } else { None };
+            if split_set.contains(&e) && parts.is_none() {
+                self.degenerate += 1;
+            }
+            if let Some([(below_faces, below_cut), (above_faces, above_cut)]) = parts {
                 let parent = self.elements[e].parent;
-                let (above_faces, above_cut) = parts.pop().expect("two parts");
-                let (below_faces, below_cut) = parts.pop().expect("two parts");
                 self.elements[e] = CutElement { faces: below_faces, cut: below_cut, parent };
                 self.elements.push(CutElement { faces: above_faces, cut: above_cut, parent });
                 appended.push(self.elements.len() - 1);
             } else {
+                // Not split (or its section degenerate: kept whole): its faces crossed where a
+                // neighbour's are split alike, as coplanar pairs.
                 let (mut faces, mut cut) = (Vec::with_capacity(inserted.len() + 1), Vec::with_capacity(inserted.len() + 1));
                 for (face, c, to) in inserted {
                     if to {
                         for keep in [-1i8, 1] {
-                            if let Some(p) = part(self, &face, keep) {
+                            if let Some(p) = self.part(plane, &face, keep) {
                                 faces.push(p);
                                 cut.push(c);
                             }
@@ -512,6 +493,65 @@ impl<'a> Topology<'a> {
         }
         near.extend(appended);
         Ok(())
+    }
+
+    /// The part of `face` on side `keep` of `plane` (with its nodes on the plane), if it has one.
+    fn part(&self, plane: &Plane, face: &[u32], keep: i8) -> Option<Vec<u32>> {
+        let out: Vec<u32> = face.iter().copied().filter(|&v| self.side(plane, v) != -keep).collect();
+        (out.len() >= 3 && out.iter().any(|&v| self.side(plane, v) == keep)).then_some(out)
+    }
+
+    /// The two convex parts (below, above) of an element whose faces, with the plane's edge
+    /// nodes inserted, are `inserted`: each part's clipped faces and the cap closing it. `None`
+    /// when the section is not one polygon (a face of the element within the on-plane tolerance
+    /// of the plane while the plane crosses it elsewhere: a degenerate touch the caller keeps
+    /// whole).
+    #[allow(clippy::type_complexity)]
+    fn split_parts(&self, plane: &Plane, inserted: &[(Vec<u32>, Mark, bool)]) -> Option<[(Vec<Vec<u32>>, Vec<Mark>); 2]> {
+        let mut parts = Vec::with_capacity(2);
+        for keep in [-1i8, 1] {
+            let (mut faces, mut cut) = (Vec::new(), Vec::new());
+            // The cap's directed edges: each face part's run along the plane, reversed.
+            let mut runs: Vec<(u32, u32)> = Vec::new();
+            for (face, c, _) in inserted {
+                let Some(p) = self.part(plane, face, keep) else { continue };
+                for k in 0..p.len() {
+                    let (a, b) = (p[k], p[(k + 1) % p.len()]);
+                    if self.side(plane, a) == 0 && self.side(plane, b) == 0 {
+                        runs.push((b, a));
+                    }
+                }
+                faces.push(p);
+                cut.push(*c);
+            }
+            // An edge the part uses both ways lies on the plane between two of its faces: not
+            // the cap's.
+            let mut cap_edges: HashMap<u32, u32> = HashMap::new();
+            for &(a, b) in &runs {
+                if !runs.contains(&(b, a)) && cap_edges.insert(a, b).is_some() {
+                    return None;
+                }
+            }
+            let (&start, _) = cap_edges.iter().min_by_key(|(a, _)| **a)?;
+            let mut cap = vec![start];
+            let mut current = cap_edges[&start];
+            while current != start {
+                if cap.len() > cap_edges.len() {
+                    return None;
+                }
+                cap.push(current);
+                current = *cap_edges.get(&current)?;
+            }
+            if cap.len() != cap_edges.len() || cap.len() < 3 {
+                return None;
+            }
+            faces.push(cap);
+            cut.push(Mark::Open);
+            parts.push((faces, cut));
+        }
+        let above = parts.pop()?;
+        let below = parts.pop()?;
+        Some([below, above])
     }
 
     /// Faces by key: `(element, face)` of each side.

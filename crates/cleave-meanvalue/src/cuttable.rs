@@ -29,10 +29,10 @@ pub fn quality(shape: &ConvexPolyhedron) -> Real {
 }
 
 /// An element being rebuilt: its shape, global nodes, cut faces and parent.
-type Rebuilt = (ConvexPolyhedron, Vec<u32>, Vec<bool>, u32);
+pub(crate) type Rebuilt = (ConvexPolyhedron, Vec<u32>, Vec<bool>, u32);
 
 /// The element of global faces `faces` (with their cut marks) over `positions`.
-fn element_of(
+pub(crate) fn element_of(
     faces: &[Vec<u32>],
     positions: &[Point3<Real>],
     tolerance: Real,
@@ -52,8 +52,18 @@ fn element_of(
                 .collect()
         })
         .collect();
-    let points = nodes.iter().map(|&v| positions[v as usize]).collect();
-    Ok((ConvexPolyhedron::with_position_tolerance(points, local_faces, tolerance)?, nodes))
+    let points: Vec<Point3<Real>> = nodes.iter().map(|&v| positions[v as usize]).collect();
+    let result = ConvexPolyhedron::with_position_tolerance(points.clone(), local_faces.clone(), tolerance);
+    if let (Err(e), true) = (&result, std::env::var("MV_DEBUG").is_ok()) {
+        eprintln!("{e}");
+        for (f, face) in local_faces.iter().enumerate() {
+            eprintln!("face {f}: {face:?}");
+        }
+        for (i, p) in points.iter().enumerate() {
+            eprintln!("v{i} {} {:?}", nodes[i], p);
+        }
+    }
+    Ok((result?, nodes))
 }
 
 /// Global faces of a rebuilt element.
@@ -64,7 +74,7 @@ fn global_faces(element: &Rebuilt) -> Vec<Vec<u32>> {
 /// Merges each element below [`QUALITY_FLOOR`], worst first, into the neighbour across an
 /// uncut shared face that makes the best convex union with it. Returns how many were merged and
 /// how many stay below the floor (no convex union).
-fn merge_slivers(elements: &mut Vec<Rebuilt>, positions: &[Point3<Real>], tolerance: Real) -> (usize, usize) {
+pub(crate) fn merge_slivers(elements: &mut Vec<Rebuilt>, positions: &[Point3<Real>], tolerance: Real) -> (usize, usize) {
     let mut merged = 0;
     // Passes until none merges: a union may itself be below the floor and merge again.
     loop {

@@ -57,6 +57,9 @@ pub enum MeanValueError {
         /// Its face (local index).
         face: usize,
     },
+    /// The surface to mesh is not a closed, outward surface, or meshing it failed.
+    #[error("meshing the surface: {0}")]
+    Surface(String),
     /// A box needs at least one cell per axis and a positive size.
     #[error("a box needs positive cell counts and size, got {dims:?} cells of {h} m")]
     BadBox {

@@ -129,7 +129,12 @@ impl ConvexPolyhedron {
         for (f, face) in faces.iter().enumerate() {
             let n = newell(face.iter().map(|&v| vertices[v]));
             let length = n.norm();
-            if length <= tolerance * diameter {
+            // No area for its size (a small face of sound shape is fine: its normal is as
+            // accurate as its vertices are relative to its size).
+            let longest = (0..face.len())
+                .map(|k| (vertices[face[(k + 1) % face.len()]] - vertices[face[k]]).norm())
+                .fold(0.0, Real::max);
+            if length <= GEOMETRY_TOLERANCE * longest * longest {
                 return Err(PolyhedronError::FaceNotConvex { face: f, vertex: face[0] });
             }
             let n = n / length;
@@ -145,15 +150,13 @@ impl ConvexPolyhedron {
                 let (a, b, c) =
                     (vertices[face[k]], vertices[face[(k + 1) % face.len()]], vertices[face[(k + 2) % face.len()]]);
                 let turn = n.dot(&(b - a).cross(&(c - b)));
-                // Straight (an inserted node) is allowed; a turn to the right is not.
-                if turn < -tolerance * diameter {
+                // Straight (an inserted node) is allowed; a turn to the right is not, beyond a
+                // vertex `position` off the line of its neighbours.
+                if turn < -(tolerance * diameter + 2.0 * position * (c - a).norm()) {
                     return Err(PolyhedronError::FaceNotConvex { face: f, vertex: face[(k + 1) % face.len()] });
                 }
             }
             normals.push(n);
-            let longest = (0..face.len())
-                .map(|k| (vertices[face[(k + 1) % face.len()]] - vertices[face[k]]).norm())
-                .fold(0.0, Real::max);
             tilts.push(2.0 * position * longest / length.max(Real::MIN_POSITIVE));
         }
         for (f, face) in faces.iter().enumerate() {

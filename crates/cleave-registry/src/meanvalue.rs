@@ -1,12 +1,12 @@
 //! The mean value backend (wicke2007): FEM on convex polyhedra with 3D mean value shape
 //! functions (`cleave-meanvalue`). Nodal, so Dirichlet data and pins are imposed strongly. Built
 //! on boxes of cuboid cells (the comparison problems and box scenes), cut by splitting elements
-//! (the cut cantilever, the cut cells of the stability grid, scenes); it does not yet mesh
-//! closed surfaces (issue 36).
+//! (the cut cantilever, the cut cells of the stability grid, scenes), and on closed surfaces
+//! (`mesh_closed_surface`: cubes inside, cut Kuhn tetrahedra at the boundary).
 
 use crate::backend::{Backend, BackendError, BuiltSolid, Shape, SolidRequest, box_dims, parse_settings};
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real};
-use cleave_meanvalue::MeanValueMesh;
+use cleave_meanvalue::{MeanValueMesh, mesh_closed_surface};
 use cleave_testkit::compare::{
     BoxGrid, BuildError, BuiltProblem, CompareBackend, CutError, CutProblem, DirichletSpec, ExtremeCase,
     NotApplicable, corner_pushed_in, nodal_problem, stretch_start,
@@ -134,32 +134,31 @@ impl CompareBackend for MeanValueBackend {
 #[derive(Clone, Debug, Default, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 struct MeanValueSettings {
-    /// Cell edge of a box [m].
+    /// Cell edge [m]: of a box's cuboids, or of the grid a closed surface is meshed on.
     #[serde(default)]
     cell_size: Option<Real>,
 }
 
 impl Backend for MeanValueBackend {
     fn summary(&self) -> &str {
-        "FEM on convex polyhedra, 3D mean value shape functions, cut by splitting elements (Wicke, Botsch, Gross 2007); boxes only so far"
+        "FEM on convex polyhedra, 3D mean value shape functions, cut by splitting elements (Wicke, Botsch, Gross 2007)"
     }
 
     fn build_solid(&self, settings: &str, request: &SolidRequest) -> Result<BuiltSolid, BackendError> {
         let settings: MeanValueSettings = parse_settings(settings)?;
-        let (min, max) = match request.shape {
-            Shape::Box { min, max } => (min, max),
-            Shape::Surface(_) => {
-                return Err(BackendError::Mesh(
-                    "the mean value backend cannot mesh a closed surface yet (issue 36); use a Box object".into(),
-                ));
+        let h = settings.cell_size.filter(|h| h.is_finite() && *h > 0.0).ok_or_else(|| {
+            BackendError::Build("the meanvalue settings need a `cell_size` (> 0) [m]".into())
+        })?;
+        let mesh = match request.shape {
+            Shape::Box { min, max } => {
+                let dims = box_dims(&min, &max, h)?;
+                MeanValueMesh::from_box(request.material, Point3::from(min), h, dims)
+                    .map_err(|e| BackendError::Build(e.to_string()))?
+            }
+            Shape::Surface(surface) => {
+                mesh_closed_surface(surface, h, request.material).map_err(|e| BackendError::Mesh(e.to_string()))?.0
             }
         };
-        let h = settings.cell_size.filter(|h| h.is_finite() && *h > 0.0).ok_or_else(|| {
-            BackendError::Build("a Box object needs meanvalue settings with `cell_size` (> 0)".into())
-        })?;
-        let dims = box_dims(&min, &max, h)?;
-        let mesh = MeanValueMesh::from_box(request.material, Point3::from(min), h, dims)
-            .map_err(|e| BackendError::Build(e.to_string()))?;
         let vertices = mesh.rest_dofs().chunks(3).map(|p| Point3::new(p[0], p[1], p[2])).collect();
         let surface = cleave_geometry::TriangleMesh::new(vertices, mesh.boundary_triangles());
         let pins = self.resolve_pins(&mesh, request.pins)?;
