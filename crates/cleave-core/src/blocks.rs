@@ -39,7 +39,9 @@ const NO_ANCHOR: u32 = u32::MAX;
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum BlockSetError {
     /// Rest matrix of the wrong shape or not symmetric.
-    #[error("rest matrix {index} is {rows}x{cols}, must be square, a multiple of 3, at most 3 × MAX_BLOCK_NODES (192) and symmetric")]
+    #[error(
+        "rest matrix {index} is {rows}x{cols}, must be square, a multiple of 3, at most 3 × MAX_BLOCK_NODES (192) and symmetric"
+    )]
     BadRestMatrix {
         /// index it would get
         index: usize,

@@ -129,7 +129,8 @@ mod tests {
     fn the_signed_distance_to_a_cube_is_the_depth_below_its_nearest_face() {
         let corner = |i: usize| Point3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64);
         let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
-        let triangles = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).map(|t| t.map(|i| i as u32));
+        let triangles =
+            quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).map(|t| t.map(|i| i as u32));
         let mesh = TriangleMesh::new((0..8).map(corner).collect(), triangles.collect());
         let tester = InsideTester::new(&mesh).unwrap();
         assert!((tester.signed_distance(&Point3::new(0.3, 0.6, 0.2)) + 0.2).abs() < 1e-15);

@@ -17,8 +17,10 @@ use std::collections::{BTreeMap, HashMap, HashSet};
 use crate::polyhedron::Real;
 
 /// Distance from a cutting plane, relative to the largest element diameter, under which a node
-/// counts as on it (round-off of nodes computed on earlier cuts).
-pub const ON_PLANE_TOLERANCE: Real = 1e-8;
+/// counts as on it: nodes computed on earlier cuts, and the crossings of several planes through
+/// one point, which round-off leaves about 1e-11 apart and would otherwise join by needle edges
+/// (the element validation allows what this implies, `ConvexPolyhedron::with_position_tolerance`).
+pub const ON_PLANE_TOLERANCE: Real = 1e-9;
 
 /// One element of the topology being cut: faces as cycles of global nodes (counter-clockwise
 /// from outside), which faces lie on a cut, and the element of the mesh before this cut that
@@ -93,7 +95,8 @@ impl CutPolygon {
         let m = corners.len();
         let normal = (0..m).fold(Vector3::zeros(), |n, k| n + corners[k].coords.cross(&corners[(k + 1) % m].coords));
         let scale = (0..m).map(|k| (corners[(k + 1) % m] - corners[k]).norm()).fold(0.0, Real::max);
-        if !(normal.norm() > 1e-12 * scale * scale) {
+        // NaN-safe: a non-finite normal is no polygon either.
+        if normal.norm().partial_cmp(&(1e-12 * scale * scale)) != Some(std::cmp::Ordering::Greater) {
             return None;
         }
         let n = normal.normalize();
@@ -466,7 +469,8 @@ impl<'a> Topology<'a> {
             } else {
                 // Not split (or its section degenerate: kept whole): its faces crossed where a
                 // neighbour's are split alike, as coplanar pairs.
-                let (mut faces, mut cut) = (Vec::with_capacity(inserted.len() + 1), Vec::with_capacity(inserted.len() + 1));
+                let (mut faces, mut cut) =
+                    (Vec::with_capacity(inserted.len() + 1), Vec::with_capacity(inserted.len() + 1));
                 for (face, c, to) in inserted {
                     if to {
                         for keep in [-1i8, 1] {
@@ -507,7 +511,11 @@ impl<'a> Topology<'a> {
     /// of the plane while the plane crosses it elsewhere: a degenerate touch the caller keeps
     /// whole).
     #[allow(clippy::type_complexity)]
-    fn split_parts(&self, plane: &Plane, inserted: &[(Vec<u32>, Mark, bool)]) -> Option<[(Vec<Vec<u32>>, Vec<Mark>); 2]> {
+    fn split_parts(
+        &self,
+        plane: &Plane,
+        inserted: &[(Vec<u32>, Mark, bool)],
+    ) -> Option<[(Vec<Vec<u32>>, Vec<Mark>); 2]> {
         let mut parts = Vec::with_capacity(2);
         for keep in [-1i8, 1] {
             let (mut faces, mut cut) = (Vec::new(), Vec::new());
@@ -637,7 +645,9 @@ impl<'a> Topology<'a> {
         let index = self.face_index();
         let mut covered: Vec<Vec<u32>> = index
             .iter()
-            .filter(|(_, sides)| sides.len() == 2 && sides.iter().all(|&(e, f)| self.elements[e].cut[f] == Mark::NewCut))
+            .filter(|(_, sides)| {
+                sides.len() == 2 && sides.iter().all(|&(e, f)| self.elements[e].cut[f] == Mark::NewCut)
+            })
             .map(|(k, _)| k.clone())
             .collect();
         covered.sort_unstable();

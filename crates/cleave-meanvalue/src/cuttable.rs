@@ -52,18 +52,8 @@ pub(crate) fn element_of(
                 .collect()
         })
         .collect();
-    let points: Vec<Point3<Real>> = nodes.iter().map(|&v| positions[v as usize]).collect();
-    let result = ConvexPolyhedron::with_position_tolerance(points.clone(), local_faces.clone(), tolerance);
-    if let (Err(e), true) = (&result, std::env::var("MV_DEBUG").is_ok()) {
-        eprintln!("{e}");
-        for (f, face) in local_faces.iter().enumerate() {
-            eprintln!("face {f}: {face:?}");
-        }
-        for (i, p) in points.iter().enumerate() {
-            eprintln!("v{i} {} {:?}", nodes[i], p);
-        }
-    }
-    Ok((result?, nodes))
+    let points = nodes.iter().map(|&v| positions[v as usize]).collect();
+    Ok((ConvexPolyhedron::with_position_tolerance(points, local_faces, tolerance)?, nodes))
 }
 
 /// Global faces of a rebuilt element.
@@ -74,7 +64,11 @@ fn global_faces(element: &Rebuilt) -> Vec<Vec<u32>> {
 /// Merges each element below [`QUALITY_FLOOR`], worst first, into the neighbour across an
 /// uncut shared face that makes the best convex union with it. Returns how many were merged and
 /// how many stay below the floor (no convex union).
-pub(crate) fn merge_slivers(elements: &mut Vec<Rebuilt>, positions: &[Point3<Real>], tolerance: Real) -> (usize, usize) {
+pub(crate) fn merge_slivers(
+    elements: &mut Vec<Rebuilt>,
+    positions: &[Point3<Real>],
+    tolerance: Real,
+) -> (usize, usize) {
     let mut merged = 0;
     // Passes until none merges: a union may itself be below the floor and merge again.
     loop {
@@ -142,7 +136,8 @@ fn merge_pass(elements: &mut Vec<Rebuilt>, positions: &[Point3<Real>], tolerance
             let Ok((shape, nodes)) = element_of(&union_faces, positions, tolerance) else { continue };
             // Every node of both must remain a vertex of the union (a node only on the shared
             // faces would be left without an element).
-            if nodes.len() < elements[s].1.iter().chain(&elements[n].1).collect::<std::collections::HashSet<_>>().len() {
+            if nodes.len() < elements[s].1.iter().chain(&elements[n].1).collect::<std::collections::HashSet<_>>().len()
+            {
                 continue;
             }
             let q = quality(&shape);
@@ -150,21 +145,18 @@ fn merge_pass(elements: &mut Vec<Rebuilt>, positions: &[Point3<Real>], tolerance
                 best = Some((q, n, (shape, nodes, union_cut, elements[n].3)));
             }
         }
-        match best {
-            Some((_, n, union)) => {
-                for face in global_faces(&elements[n]).iter().chain(&faces_s) {
-                    if let Some(list) = sides.get_mut(&key(face)) {
-                        list.retain(|&e| e != n && e != s);
-                    }
+        if let Some((_, n, union)) = best {
+            for face in global_faces(&elements[n]).iter().chain(&faces_s) {
+                if let Some(list) = sides.get_mut(&key(face)) {
+                    list.retain(|&e| e != n && e != s);
                 }
-                for face in global_faces(&union) {
-                    sides.entry(key(&face)).or_default().push(n);
-                }
-                elements[n] = union;
-                dead[s] = true;
-                merged += 1;
             }
-            None => {}
+            for face in global_faces(&union) {
+                sides.entry(key(&face)).or_default().push(n);
+            }
+            elements[n] = union;
+            dead[s] = true;
+            merged += 1;
         }
     }
     let mut index = 0;
@@ -336,6 +328,7 @@ impl Cuttable for MeanValueMesh {
             .map_err(|err| TopologyError::Invalid(format!("the cut mesh: {err}")))?;
         mesh.epoch = epoch;
         mesh.last_cut = report;
+
         *self = mesh;
         Ok(TopologyChange { epoch, remap: DofRemap::Linear(remap), frames, pattern_changed: true })
     }

@@ -18,15 +18,15 @@
 pub mod coordinates;
 mod cut;
 mod cuttable;
-pub mod mesher;
 pub mod element;
 pub mod mesh;
+pub mod mesher;
 pub mod polyhedron;
 
 pub use coordinates::{BOUNDARY_TOLERANCE, GRADIENT_INSET, Workspace, mean_value_coordinates};
-pub use element::{ElementIntegrals, quadrature};
-pub use cuttable::{QUALITY_FLOOR, quality};
-pub use mesher::{MeshingReport, mesh_closed_surface};
-pub use mesh::{CutReport, DEFAULT_REFINEMENT, MeanValueError, MeanValueMesh};
 pub use cut::ON_PLANE_TOLERANCE;
+pub use cuttable::{QUALITY_FLOOR, quality};
+pub use element::{ElementIntegrals, quadrature};
+pub use mesh::{CutReport, DEFAULT_REFINEMENT, MeanValueError, MeanValueMesh};
+pub use mesher::{MeshingReport, mesh_closed_surface};
 pub use polyhedron::{ConvexPolyhedron, GEOMETRY_TOLERANCE, PolyhedronError};

@@ -129,7 +129,10 @@ pub fn mesh_closed_surface(
                         if fraction < WARP_FRACTION {
                             let gap = fraction * length;
                             let entry = target.entry(node).or_insert((Real::MAX, crossing));
-                            if gap < entry.0 || (gap == entry.0 && (crossing.x, crossing.y, crossing.z) < (entry.1.x, entry.1.y, entry.1.z)) {
+                            if gap < entry.0
+                                || (gap == entry.0
+                                    && (crossing.x, crossing.y, crossing.z) < (entry.1.x, entry.1.y, entry.1.z))
+                            {
                                 *entry = (gap, crossing);
                             }
                         }

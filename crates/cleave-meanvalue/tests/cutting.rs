@@ -60,11 +60,8 @@ fn an_oblique_plane_cuts_a_box_in_two() {
         for j in 0..samples {
             for k in 0..samples {
                 let f = |a: usize| (a as Real + 0.5) / samples as Real;
-                let p = Point3::new(
-                    lo.x + (hi.x - lo.x) * f(i),
-                    lo.y + (hi.y - lo.y) * f(j),
-                    lo.z + (hi.z - lo.z) * f(k),
-                );
+                let p =
+                    Point3::new(lo.x + (hi.x - lo.x) * f(i), lo.y + (hi.y - lo.y) * f(j), lo.z + (hi.z - lo.z) * f(k));
                 inside += usize::from(below(&p));
             }
         }
@@ -131,7 +128,8 @@ fn random_cut_sequences_never_panic_and_keep_every_element_valid() {
         let mut mesh = moved_box(Point3::new(0.0, 0.0, 0.0), 0.1, [4, 3, 3], &Isometry3::identity());
         let volume: Real = mesh.pieces().iter().map(|p| p.volume).sum();
         for _ in 0..6 {
-            let centre = Point3::new(0.2, 0.15, 0.15) + Vector3::new(random.next(), random.next(), random.next()) * 0.15;
+            let centre =
+                Point3::new(0.2, 0.15, 0.15) + Vector3::new(random.next(), random.next(), random.next()) * 0.15;
             let soup: Vec<[Point3<Real>; 3]> = (0..3)
                 .map(|_| {
                     let mut p = || centre + Vector3::new(random.next(), random.next(), random.next()) * 0.25;
@@ -161,9 +159,16 @@ fn random_cut_sequences_never_panic_and_keep_every_element_valid() {
                 worst = worst.min(quality(mesh.element(e).0));
             }
         }
-        println!("round {round}: {} elements, {} nodes, {} pieces", mesh.num_elements(), mesh.num_nodes(), mesh.pieces().len());
+        println!(
+            "round {round}: {} elements, {} nodes, {} pieces",
+            mesh.num_elements(),
+            mesh.num_nodes(),
+            mesh.pieces().len()
+        );
     }
-    println!("{failed} of {cuts} cuts refused; {merged} slivers merged, {below} left below {QUALITY_FLOOR}; worst element quality {worst:.3e}");
+    println!(
+        "{failed} of {cuts} cuts refused; {merged} slivers merged, {below} left below {QUALITY_FLOOR}; worst element quality {worst:.3e}"
+    );
     // Measured: none refused, 13 merged, one left at 7.4e-3 (no neighbour makes a convex
     // element with it). Without merging the worst is 1.1e-3.
     assert_eq!(failed, 0);

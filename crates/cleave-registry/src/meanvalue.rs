@@ -8,8 +8,8 @@ use crate::backend::{Backend, BackendError, BuiltSolid, Shape, SolidRequest, box
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real};
 use cleave_meanvalue::{MeanValueMesh, mesh_closed_surface};
 use cleave_testkit::compare::{
-    BoxGrid, BuildError, BuiltProblem, CompareBackend, CutError, CutProblem, DirichletSpec, ExtremeCase,
-    NotApplicable, corner_pushed_in, nodal_problem, stretch_start,
+    BoxGrid, BuildError, BuiltProblem, CompareBackend, CutError, CutProblem, DirichletSpec, ExtremeCase, NotApplicable,
+    corner_pushed_in, nodal_problem, stretch_start,
 };
 use cleave_testkit::problems::nodal_dirichlet;
 
@@ -146,9 +146,10 @@ impl Backend for MeanValueBackend {
 
     fn build_solid(&self, settings: &str, request: &SolidRequest) -> Result<BuiltSolid, BackendError> {
         let settings: MeanValueSettings = parse_settings(settings)?;
-        let h = settings.cell_size.filter(|h| h.is_finite() && *h > 0.0).ok_or_else(|| {
-            BackendError::Build("the meanvalue settings need a `cell_size` (> 0) [m]".into())
-        })?;
+        let h = settings
+            .cell_size
+            .filter(|h| h.is_finite() && *h > 0.0)
+            .ok_or_else(|| BackendError::Build("the meanvalue settings need a `cell_size` (> 0) [m]".into()))?;
         let mesh = match request.shape {
             Shape::Box { min, max } => {
                 let dims = box_dims(&min, &max, h)?;
@@ -162,7 +163,9 @@ impl Backend for MeanValueBackend {
         let vertices = mesh.rest_dofs().chunks(3).map(|p| Point3::new(p[0], p[1], p[2])).collect();
         let surface = cleave_geometry::TriangleMesh::new(vertices, mesh.boundary_triangles());
         let pins = self.resolve_pins(&mesh, request.pins)?;
-        let (elements, element_size) = (mesh.num_elements(), mesh.element_size());
+        // The cell edge, as virtual node reports its lattice's (the mean element of a meshed
+        // surface is a sixth of a cube, whose cube root would understate it).
+        let (elements, element_size) = (mesh.num_elements(), h);
         Ok(BuiltSolid { discretization: Box::new(mesh), elements, element_size, pins, surface })
     }
 }

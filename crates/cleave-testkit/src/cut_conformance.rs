@@ -206,15 +206,26 @@ fn sequence_checks(subject: &CutSubject<'_>) -> Vec<Check> {
                 Check { name: "cut: volume and mass conserved", error: m.conserved, tolerance: 1e-12 },
                 Check { name: "cut: affine state's elastic energy kept", error: m.energy_change, tolerance: 1e-12 },
                 Check { name: "cut: every piece's surface closed", error: m.defects as Real, tolerance: 0.0 },
-                Check { name: "cut: bent state's material points move little", error: b.motion, tolerance: bent_motion },
-                Check { name: "cut: bent state's energy rises little", error: b.energy_rise.max(0.0), tolerance: bent_energy },
+                Check {
+                    name: "cut: bent state's material points move little",
+                    error: b.motion,
+                    tolerance: bent_motion,
+                },
+                Check {
+                    name: "cut: bent state's energy rises little",
+                    error: b.energy_rise.max(0.0),
+                    tolerance: bent_energy,
+                },
             ]
         }
     }
 }
 
 /// Runs the subject's cuts from the state `start` makes.
-fn run_sequence(subject: &CutSubject<'_>, start: &dyn Fn(&dyn CutBody) -> (Vec<Real>, Vec<Real>)) -> Measured {
+/// Makes the start state `(x, v)` of a cut sequence for a body.
+type StartState<'a> = &'a dyn Fn(&dyn CutBody) -> (Vec<Real>, Vec<Real>);
+
+fn run_sequence(subject: &CutSubject<'_>, start: StartState<'_>) -> Measured {
     let mut body = (subject.make)(&Isometry3::identity());
     let scale = size(body.as_ref());
     let (mut x, mut v) = start(body.as_ref());
