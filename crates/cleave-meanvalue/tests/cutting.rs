@@ -174,3 +174,24 @@ fn random_cut_sequences_never_panic_and_keep_every_element_valid() {
     assert_eq!(failed, 0);
     assert!(worst > 5e-3, "worst element quality {worst}");
 }
+
+/// wicke2007's Fig. 9 block (3 × 3 × 3 cubes of 0.1 m), as `scenes/block_slice_meanvalue.ron`
+/// starts: the paper reports 64 nodes and 27 elements before its first cut; the corner plane
+/// x + y + z = 0.45 takes off the tetrahedron of legs 0.15 m, whose volume is known exactly.
+#[test]
+fn the_fig9_block_loses_its_corner_tetrahedron_exactly() {
+    let mut mesh = moved_box(Point3::new(-0.15, -0.15, 0.0), 0.1, [3, 3, 3], &Isometry3::identity());
+    assert_eq!((mesh.num_nodes(), mesh.num_elements()), (64, 27));
+    let n = Vector3::new(1.0, 1.0, 1.0);
+    mesh.cut(&CutSurface::Plane { point: Point3::new(0.15, 0.15, 0.15), normal: n }).unwrap();
+    let pieces = mesh.pieces();
+    println!("after the corner cut: {} nodes, {} elements, {} pieces", mesh.num_nodes(), mesh.num_elements(), pieces.len());
+    assert_eq!(pieces.len(), 2);
+    let corner = pieces.iter().map(|p| p.volume).fold(Real::MAX, Real::min);
+    let exact = 0.15f64.powi(3) / 6.0;
+    assert!(((corner - exact) / exact).abs() < 1e-12, "{corner} vs {exact}");
+    // Every element valid and none below the quality floor.
+    for e in 0..mesh.num_elements() {
+        assert!(quality(mesh.element(e).0) >= QUALITY_FLOOR, "element {e}");
+    }
+}
