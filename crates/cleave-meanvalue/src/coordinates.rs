@@ -114,6 +114,9 @@ fn face_limit(element: &ConvexPolyhedron, f: usize, x: &Point3<Real>, values: &m
     values.iter_mut().for_each(|v| *v = 0.0);
     let tolerance = boundary_tolerance(element);
     let m = face.len();
+    // On an edge's line: of the edges whose line holds the point (several, where straight
+    // vertices make collinear edges), the one whose segment holds it, or comes nearest to.
+    let mut on_edge: Option<(Real, usize, Real)> = None;
     for k in 0..m {
         let (a, b) = (vertices[face[k]], vertices[face[(k + 1) % m]]);
         let edge = b - a;
@@ -121,18 +124,25 @@ fn face_limit(element: &ConvexPolyhedron, f: usize, x: &Point3<Real>, values: &m
         if inward.dot(&(p - a)) <= tolerance {
             let length = edge.norm();
             let along = (p - a).dot(&edge) / length;
-            // At a node (within the tolerance): exactly its delta, the Lagrange property.
-            let s = if along <= tolerance {
-                0.0
-            } else if along >= length - tolerance {
-                1.0
-            } else {
-                along / length
-            };
-            values[face[k]] += 1.0 - s;
-            values[face[(k + 1) % m]] += s;
-            return;
+            let beyond = (-along).max(along - length).max(0.0);
+            if on_edge.is_none_or(|(best, ..)| beyond < best) {
+                on_edge = Some((beyond, k, along));
+            }
         }
+    }
+    if let Some((_, k, along)) = on_edge {
+        let length = (vertices[face[(k + 1) % m]] - vertices[face[k]]).norm();
+        // At a node (within the tolerance): exactly its delta, the Lagrange property.
+        let s = if along <= tolerance {
+            0.0
+        } else if along >= length - tolerance {
+            1.0
+        } else {
+            along / length
+        };
+        values[face[k]] += 1.0 - s;
+        values[face[(k + 1) % m]] += s;
+        return;
     }
     work.polygon.clear();
     work.polygon.extend(face.iter().map(|&v| vertices[v]));

@@ -266,3 +266,38 @@ fn the_cube_is_symmetric_but_not_trilinear() {
     let difference = a.iter().zip(&trilinear).map(|(p, q)| (p - q).abs()).fold(0.0, f64::max);
     assert!(difference > 1e-3, "mean value coordinates are not trilinear: {difference:.2e}");
 }
+
+/// A cube with two straight nodes inserted on one edge (a neighbour's nodes, as cutting leaves
+/// them): every point along that edge, on each of its three collinear segments, is the linear
+/// interpolation of that segment's ends, so the coordinates sum to one and reproduce the point.
+/// (Taking the first edge whose line holds the point gave the end of another segment.)
+#[test]
+fn points_on_an_edge_with_straight_nodes_interpolate_their_own_segment() {
+    let p = |x: f64, y: f64, z: f64| Point3::new(x, y, z);
+    // The cube [0,1]³ with nodes 8 and 9 at z = 0.3 and 0.7 on the edge x = 0, y = 0.
+    let mut vertices: Vec<Point3<f64>> =
+        (0..8).map(|c| p((c & 1) as f64, ((c >> 1) & 1) as f64, ((c >> 2) & 1) as f64)).collect();
+    vertices.push(p(0.0, 0.0, 0.3));
+    vertices.push(p(0.0, 0.0, 0.7));
+    let faces = vec![
+        vec![0, 2, 3, 1],
+        vec![4, 5, 7, 6],
+        vec![0, 1, 5, 4, 9, 8],
+        vec![2, 6, 7, 3],
+        vec![0, 8, 9, 4, 6, 2],
+        vec![1, 3, 7, 5],
+    ];
+    let cube = ConvexPolyhedron::new(vertices.clone(), faces).unwrap();
+    let mut lambda = vec![0.0; 10];
+    let mut work = Workspace::default();
+    for z in [0.05, 0.2, 0.3, 0.45, 0.6, 0.85, 0.95] {
+        let x = p(0.0, 0.0, z);
+        mean_value_coordinates(&cube, &x, &mut lambda, None, &mut work);
+        let sum: f64 = lambda.iter().sum();
+        let point: Vector3<f64> = lambda.iter().zip(&vertices).map(|(l, v)| v.coords * *l).sum();
+        assert!((sum - 1.0).abs() < 1e-14, "z = {z}: Σλ = {sum}");
+        assert!((point - x.coords).norm() < 1e-14, "z = {z}: {point:?}");
+        // Only the segment's two ends carry weight.
+        assert_eq!(lambda.iter().filter(|l| l.abs() > 1e-14).count(), if z == 0.3 { 1 } else { 2 }, "z = {z}");
+    }
+}
