@@ -1,6 +1,6 @@
 //! Cutting a mesh of convex polyhedra by splitting elements (wicke2007 §5, docs/math/mean-value.md
-//! §7): the topology of the elements as polygons of global nodes, split by the plane of each cut
-//! triangle, the faces in that plane split by the triangle's edges, the faces inside the triangle
+//! §9): the topology of the elements as polygons of global nodes, split by the plane of each
+//! convex cut polygon, the faces in that plane split by the polygon's edges, the faces inside it
 //! covered, nodes duplicated per group of elements still joined around them, and a pocket node
 //! where a covered region has no node to open with. Every new node's rest position and its row
 //! over the old nodes (the old element's mean value coordinates there) are recorded for

@@ -1,4 +1,4 @@
-//! `Cuttable` for the mean value mesh (wicke2007 §5, docs/math/mean-value.md §7): a cut made on
+//! `Cuttable` for the mean value mesh (wicke2007 §5, docs/math/mean-value.md §9): a cut made on
 //! the element topology (`cut.rs`), the mesh rebuilt from it with rest matrices shared per shape,
 //! the new nodes carried by `DofRemap::Linear` (each the old element's coordinates at its rest
 //! position, so affine fields are carried exactly), pieces as elements joined through uncut
@@ -20,7 +20,7 @@ const ROW_EPSILON: Real = 1e-15;
 /// The quality floor of an element made by a cut: its volume over its diameter cubed, scaled so
 /// that a cube has 1 (a regular tetrahedron 0.61). An element below it is merged into the
 /// neighbour across its largest uncut shared face with which it makes a convex element
-/// (mean-value.md §7.4).
+/// (mean-value.md §9, "Slivers").
 pub const QUALITY_FLOOR: Real = 1e-2;
 
 /// An element's quality (see [`QUALITY_FLOOR`]).

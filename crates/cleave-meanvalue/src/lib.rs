@@ -3,8 +3,9 @@
 //! coordinates as shape functions: a validated convex polyhedron that splits by planes
 //! (`polyhedron`), the coordinates with their analytic gradients, robust up to and on the
 //! boundary (`coordinates`), an element's integrals with the gradient correction that makes the
-//! patch test exact (`element`), and a corotated mesh behind `Discretization` (`mesh`). Not yet:
-//! a mesher for closed surfaces, cutting, registration as a backend (issue 36).
+//! patch test exact (`element`), a corotated mesh behind `Discretization` (`mesh`), cutting by
+//! splitting elements (`cut`, `cuttable`: `Cuttable` on `MeanValueMesh`), and a mesher for closed
+//! surfaces (`mesher`). Registered as the backend `meanvalue` in `cleave-registry`.
 //!
 //! ```
 //! # use cleave_meanvalue::{ConvexPolyhedron, Workspace, mean_value_coordinates};

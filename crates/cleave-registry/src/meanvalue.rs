@@ -11,7 +11,6 @@ use cleave_testkit::compare::{
     BoxGrid, BuildError, BuiltProblem, CompareBackend, CutError, CutProblem, DirichletSpec, ExtremeCase, NotApplicable,
     corner_pushed_in, nodal_problem, stretch_start,
 };
-use cleave_testkit::problems::nodal_dirichlet;
 
 /// Distance of the sliver beam's crack plane from the node plane it is next to, in units of the
 /// cell edge `h`: the elements it crosses leave slabs 1e-5 h thick.
@@ -77,15 +76,7 @@ impl CompareBackend for MeanValueBackend {
             .map_err(|e| CutError::Build(e.to_string()))?;
         let change = mesh.cut(surface).map_err(|e| CutError::Build(e.to_string()))?;
         let elements = mesh.num_elements();
-        let prescribed = nodal_dirichlet(&mesh, dirichlet.region, dirichlet.value);
-        let built = BuiltProblem {
-            discretization: Box::new(mesh),
-            prescribed,
-            dirichlet_load: Vec::new(),
-            elements,
-            search_seconds: 0.0,
-        };
-        Ok(CutProblem { built, change })
+        Ok(CutProblem { built: nodal_problem(Box::new(mesh), elements, dirichlet), change })
     }
 
     /// Uncut cells are all the same cube, so the sliver case cracks the beam first
@@ -104,14 +95,7 @@ impl CompareBackend for MeanValueBackend {
         crate::only_variant("meanvalue", variant, "polygon")?;
         let mesh = sliver_beam(material, grid).map_err(BuildError)?;
         let elements = mesh.num_elements();
-        let prescribed = nodal_dirichlet(&mesh, dirichlet.region, dirichlet.value);
-        Ok(Some(BuiltProblem {
-            discretization: Box::new(mesh),
-            prescribed,
-            dirichlet_load: Vec::new(),
-            elements,
-            search_seconds: 0.0,
-        }))
+        Ok(Some(nodal_problem(Box::new(mesh), elements, dirichlet)))
     }
 
     fn extreme_start(

@@ -8,9 +8,8 @@ use crate::backend::{Backend, BackendError, BuiltSolid, Shape, SolidRequest, cel
 use cleave_core::{CutSurface, Cuttable, Material, Point3, Real};
 use cleave_testkit::compare::{
     BoxGrid, BuildError, BuiltProblem, CompareBackend, CutError, CutProblem, DirichletSpec, ExtremeCase, NotApplicable,
-    corner_pushed_in, stretch_start,
+    corner_pushed_in, nodal_problem, stretch_start,
 };
-use cleave_testkit::problems::nodal_dirichlet;
 use cleave_virtualnode::{VirtualNodeMesh, box_surface};
 
 /// Registration of `cleave-virtualnode`: one variant, corotated linear tetrahedra on a BCC lattice.
@@ -80,14 +79,7 @@ impl CompareBackend for VirtualNodeBackend {
         let mesh = VirtualNodeMesh::from_box(grid.origin, grid.max_corner(), grid.h, *material)
             .map_err(|e| BuildError(e.to_string()))?;
         let elements = mesh.num_duplicates();
-        let prescribed = nodal_dirichlet(&mesh, dirichlet.region, dirichlet.value);
-        Ok(BuiltProblem {
-            discretization: Box::new(mesh),
-            prescribed,
-            dirichlet_load: Vec::new(),
-            elements,
-            search_seconds: 0.0,
-        })
+        Ok(nodal_problem(Box::new(mesh), elements, dirichlet))
     }
 
     fn cuts(&self, variant: &str) -> bool {
@@ -95,7 +87,7 @@ impl CompareBackend for VirtualNodeBackend {
     }
 
     /// The carved box cut by `surface` with `Cuttable::cut` (what scenes call), the Dirichlet data
-    /// resolved on the cut mesh by `Discretization::dirichlet_nodes`, through `nodal_dirichlet`.
+    /// resolved on the cut mesh by `Discretization::dirichlet_nodes`, through `nodal_problem`.
     fn build_cut_box(
         &self,
         variant: &str,
@@ -109,15 +101,7 @@ impl CompareBackend for VirtualNodeBackend {
             .map_err(|e| CutError::Build(e.to_string()))?;
         let change = mesh.cut(surface).map_err(|e| CutError::Build(e.to_string()))?;
         let elements = mesh.num_duplicates();
-        let prescribed = nodal_dirichlet(&mesh, dirichlet.region, dirichlet.value);
-        let built = BuiltProblem {
-            discretization: Box::new(mesh),
-            prescribed,
-            dirichlet_load: Vec::new(),
-            elements,
-            search_seconds: 0.0,
-        };
-        Ok(CutProblem { built, change })
+        Ok(CutProblem { built: nodal_problem(Box::new(mesh), elements, dirichlet), change })
     }
 
     /// Uncut lattice tetrahedra are congruent, so the sliver case cuts the beam first
@@ -136,14 +120,7 @@ impl CompareBackend for VirtualNodeBackend {
         crate::only_variant("virtualnode", variant, "linear-tet")?;
         let mesh = sliver_beam(material, grid).map_err(BuildError)?;
         let elements = mesh.num_duplicates();
-        let prescribed = nodal_dirichlet(&mesh, dirichlet.region, dirichlet.value);
-        Ok(Some(BuiltProblem {
-            discretization: Box::new(mesh),
-            prescribed,
-            dirichlet_load: Vec::new(),
-            elements,
-            search_seconds: 0.0,
-        }))
+        Ok(Some(nodal_problem(Box::new(mesh), elements, dirichlet)))
     }
 
     fn extreme_start(

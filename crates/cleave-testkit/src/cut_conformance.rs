@@ -17,7 +17,7 @@
 //!   discretization is invariant under) give pieces of the same volumes and masses.
 //! - **Determinism**: two runs give the same bytes (rest DOFs, surfaces, pieces, remaps).
 
-use crate::{Check, Lcg, bent_state};
+use crate::{Check, Lcg, affine_dofs, bent_state};
 use cleave_core::{CutSurface, Cuttable, Discretization, DofRemap, EmbeddedSurface, Point3, Real, Vector3};
 use nalgebra::{Isometry3, Matrix3, Rotation3};
 use std::collections::HashMap;
@@ -149,22 +149,14 @@ pub fn open_surface_defects(surface: &EmbeddedSurface, weld: Real) -> usize {
 
 /// The affine state `x = A X + b` (a rotation times a stretch) and an affine velocity.
 fn affine_state(body: &dyn CutBody) -> (Vec<Real>, Vec<Real>) {
-    let affine = |a: Matrix3<Real>, b: Vector3<Real>| {
-        let mut x: Vec<Real> = body
-            .rest_dofs()
-            .chunks_exact(3)
-            .flat_map(|p| {
-                let y = a * Vector3::new(p[0], p[1], p[2]);
-                [y.x, y.y, y.z]
-            })
-            .collect();
-        body.add_translation(&b, &mut x);
-        x
-    };
     let turn = Rotation3::from_euler_angles(0.4, -0.3, 0.9).into_inner();
     let stretch = Matrix3::new(1.1, 0.05, 0.0, 0.05, 0.95, 0.02, 0.0, 0.02, 1.03);
-    let x = affine(turn * stretch, Vector3::new(0.3, -0.2, 0.1));
-    let v = affine(Matrix3::new(0.2, -1.0, 0.3, 1.0, 0.1, -0.4, -0.3, 0.4, -0.1), Vector3::new(1.0, 2.0, -0.5));
+    let x = affine_dofs(body, &(turn * stretch), &Vector3::new(0.3, -0.2, 0.1));
+    let v = affine_dofs(
+        body,
+        &Matrix3::new(0.2, -1.0, 0.3, 1.0, 0.1, -0.4, -0.3, 0.4, -0.1),
+        &Vector3::new(1.0, 2.0, -0.5),
+    );
     (x, v)
 }
 

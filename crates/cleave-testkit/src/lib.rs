@@ -212,21 +212,28 @@ pub fn matrix_free_equals_assembled(d: &dyn Discretization) -> Check {
     }
 }
 
+/// The DOFs of the affine field `x = A X + b`: `A` applied to every coefficient of the rest
+/// DOFs, then `b` added as a translation (right for nodal and modal bases alike).
+pub fn affine_dofs(d: &dyn Discretization, a: &Matrix3<Real>, b: &Vector3<Real>) -> Vec<Real> {
+    let mut x: Vec<Real> = d
+        .rest_dofs()
+        .chunks_exact(3)
+        .flat_map(|p| {
+            let y = a * Vector3::new(p[0], p[1], p[2]);
+            [y.x, y.y, y.z]
+        })
+        .collect();
+    d.add_translation(b, &mut x);
+    x
+}
+
 /// A rigid motion `x = Q X + t` of the rest state gives zero force once the backend extracts its
 /// rotations (measured against the force of the non-rigid deformation of the same size).
 pub fn rigid_motion_is_force_free(d: &dyn Discretization) -> Check {
     let mut rng = Lcg::new(5);
     let q = Rotation3::from_euler_angles(2.0, -1.0, 0.4).into_inner();
     let t = Vector3::new(3.0, -2.0, 1.0) * rest_scale(d);
-    let mut x: Vec<Real> = d
-        .rest_dofs()
-        .chunks_exact(3)
-        .flat_map(|p| {
-            let y = q * Vector3::new(p[0], p[1], p[2]);
-            [y.x, y.y, y.z]
-        })
-        .collect();
-    d.add_translation(&t, &mut x);
+    let x = affine_dofs(d, &q, &t);
     // Several warm-started extractions: a rotation of 2 rad from the identity takes a few rounds.
     let mut r = vec![Matrix3::identity(); d.num_frames()];
     for _ in 0..10 {
@@ -375,15 +382,7 @@ pub fn embedding_reproduces_linear_fields(d: &dyn Discretization) -> Check {
     let mut rng = Lcg::new(6);
     let a = Matrix3::from_fn(|_, _| rng.next());
     let b = Vector3::new(rng.next(), rng.next(), rng.next());
-    let mut x: Vec<Real> = d
-        .rest_dofs()
-        .chunks_exact(3)
-        .flat_map(|p| {
-            let y = a * Vector3::new(p[0], p[1], p[2]);
-            [y.x, y.y, y.z]
-        })
-        .collect();
-    d.add_translation(&b, &mut x);
+    let x = affine_dofs(d, &a, &b);
     // Points inside the solid: the backend's own quadrature points.
     let mut points = Vec::new();
     let zero = vec![0.0; x.len()];
