@@ -32,6 +32,23 @@ use rayon::prelude::*;
 /// cut sequence); bounds the stack scratch of the kernels.
 pub const MAX_BLOCK_NODES: usize = 64;
 
+/// Blocks of up to this many nodes (cubes, tetrahedra, DG faces, most mean value cells) take
+/// their kernels' scratch from an array of this size, so they do not pay for zeroing the
+/// largest block's.
+const SMALL_BLOCK_NODES: usize = 32;
+
+/// Runs `f` on `n` zeroed reals of stack scratch (`n ≤ 3 · MAX_BLOCK_NODES`).
+#[inline(always)]
+fn with_scratch<R>(n: usize, f: impl FnOnce(&mut [Real]) -> R) -> R {
+    if n <= 3 * SMALL_BLOCK_NODES {
+        let mut scratch = [0.0; 3 * SMALL_BLOCK_NODES];
+        f(&mut scratch[..n])
+    } else {
+        let mut scratch = [0.0; 3 * MAX_BLOCK_NODES];
+        f(&mut scratch[..n])
+    }
+}
+
 const NO_FRAME: u32 = u32::MAX;
 const NO_ANCHOR: u32 = u32::MAX;
 
@@ -303,24 +320,25 @@ impl BlockSet {
             let block = self.block(b);
             let r = Self::rotation(rotations, block.frame);
             let n = 3 * block.nodes.len();
-            let mut local = [0.0; 3 * MAX_BLOCK_NODES];
-            corotated_displacement(&r, block.nodes, x, rest, self.translation_invariant, &mut local[..n]);
-            match block.anchor {
-                None => apply_warped(block.rest, &r, &local[..n], block.nodes, -1.0, buf, base),
-                Some(h) => {
-                    let mut anchored = [0.0; 3 * MAX_BLOCK_NODES];
-                    rotated_displacement(&r, block.nodes, x, rest, &mut anchored[..n]);
-                    let mut y = [0.0; 3 * MAX_BLOCK_NODES];
-                    for row in 0..n {
-                        let mut sum = 0.0;
-                        for col in 0..n {
-                            sum += h[(row, col)] * local[col] + h[(col, row)] * anchored[col];
+            with_scratch(n, |local| {
+                corotated_displacement(&r, block.nodes, x, rest, self.translation_invariant, local);
+                match block.anchor {
+                    None => apply_warped(block.rest, &r, local, block.nodes, -1.0, buf, base),
+                    Some(h) => {
+                        let mut anchored = [0.0; 3 * MAX_BLOCK_NODES];
+                        rotated_displacement(&r, block.nodes, x, rest, &mut anchored[..n]);
+                        let mut y = [0.0; 3 * MAX_BLOCK_NODES];
+                        for row in 0..n {
+                            let mut sum = 0.0;
+                            for col in 0..n {
+                                sum += h[(row, col)] * local[col] + h[(col, row)] * anchored[col];
+                            }
+                            y[row] = sum;
                         }
-                        y[row] = sum;
+                        scatter_rotated(&r, &y[..n], block.nodes, -1.0, buf, base);
                     }
-                    scatter_rotated(&r, &y[..n], block.nodes, -1.0, buf, base);
                 }
-            }
+            });
         });
     }
 
@@ -329,14 +347,14 @@ impl BlockSet {
         self.plan.scatter_add(out, |b, buf, base| {
             let block = self.block(b);
             let r = Self::rotation(rotations, block.frame);
-            let n = block.nodes.len();
-            let mut local = [0.0; 3 * MAX_BLOCK_NODES];
-            for (a, &node) in block.nodes.iter().enumerate() {
-                let i = 3 * node as usize;
-                let p = r.tr_mul(&nalgebra::Vector3::new(dx[i], dx[i + 1], dx[i + 2]));
-                local[3 * a..3 * a + 3].copy_from_slice(p.as_slice());
-            }
-            apply_warped(block.rest, &r, &local[..3 * n], block.nodes, scale, buf, base);
+            with_scratch(3 * block.nodes.len(), |local| {
+                for (a, &node) in block.nodes.iter().enumerate() {
+                    let i = 3 * node as usize;
+                    let p = r.tr_mul(&nalgebra::Vector3::new(dx[i], dx[i + 1], dx[i + 2]));
+                    local[3 * a..3 * a + 3].copy_from_slice(p.as_slice());
+                }
+                apply_warped(block.rest, &r, local, block.nodes, scale, buf, base);
+            });
         });
     }
 
