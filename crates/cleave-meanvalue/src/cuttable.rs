@@ -310,7 +310,7 @@ impl Cuttable for MeanValueMesh {
             built.push((shape, nodes, element.cut.iter().map(|m| m.is_cut()).collect(), element.parent));
         }
         let (merged, left) = merge_slivers(&mut built, &topology.positions, topology.tolerance());
-        let report = CutReport { merged, below_floor: left };
+        let report = CutReport { merged, below_floor: left, degenerate: topology.degenerate };
         let mut remap = Embedding::new();
         for v in 0..topology.positions.len() {
             if v < old_nodes {

@@ -77,6 +77,8 @@ pub struct CutReport {
     pub merged: usize,
     /// Elements left below the floor (no convex union with a neighbour).
     pub below_floor: usize,
+    /// Elements a cut's plane crossed whose section was degenerate, kept whole (`cut.rs`).
+    pub degenerate: usize,
 }
 
 /// One element: its polyhedron, its nodes, and what the steps need of its integrals.

@@ -40,6 +40,21 @@ pub struct CutSubject<'a> {
     pub transfer: Transfer,
 }
 
+/// A curved cut soup for the contract's sequences: a strip of 24 triangles standing on the
+/// curve x = 0.55 + 0.08 sin(3y), y ∈ [−0.3, 0.42], z from 0 to 0.7 (leaning 0.02 in x), for
+/// bodies around [0, 0.8] × [−0.2, 0.2] × [0.1, 0.5].
+pub fn curved_strip() -> Vec<[Point3<Real>; 3]> {
+    (0..12)
+        .flat_map(|k| {
+            let y = |k: usize| -0.3 + 0.06 * k as Real;
+            let x = |k: usize| 0.55 + 0.08 * (3.0 * y(k)).sin();
+            let (p0, p1) = (Point3::new(x(k), y(k), 0.0), Point3::new(x(k + 1), y(k + 1), 0.0));
+            let (q0, q1) = (p0 + Vector3::new(0.02, 0.0, 0.7), p1 + Vector3::new(0.02, 0.0, 0.7));
+            [[p0, p1, q1], [p0, q1, q0]]
+        })
+        .collect()
+}
+
 /// How a backend carries the displacement field across a cut.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Transfer {

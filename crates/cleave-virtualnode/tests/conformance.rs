@@ -2,7 +2,7 @@
 //! and the cut contract (`cleave_testkit::cut_conformance`).
 
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real, Vector3};
-use cleave_testkit::cut_conformance::{CutBody, CutSubject, Transfer, cut_conformance};
+use cleave_testkit::cut_conformance::{CutBody, CutSubject, Transfer, curved_strip, cut_conformance};
 use cleave_testkit::{assert_all_pass, conformance_suite};
 use cleave_virtualnode::{VirtualNodeMesh, box_surface};
 use nalgebra::Isometry3;
@@ -43,15 +43,6 @@ fn cuts_keep_the_cut_contract() {
         let moved = surface.transformed(|p| motion * p);
         Box::new(VirtualNodeMesh::carve(&moved, 0.1, material).unwrap())
     };
-    let strip: Vec<[Point3<Real>; 3]> = (0..12)
-        .flat_map(|k| {
-            let y = |k: usize| -0.3 + 0.06 * k as Real;
-            let x = |k: usize| 0.55 + 0.08 * (3.0 * y(k)).sin();
-            let (p0, p1) = (Point3::new(x(k), y(k), 0.0), Point3::new(x(k + 1), y(k + 1), 0.0));
-            let (q0, q1) = (p0 + Vector3::new(0.02, 0.0, 0.7), p1 + Vector3::new(0.02, 0.0, 0.7));
-            [[p0, p1, q1], [p0, q1, q0]]
-        })
-        .collect();
     let subject = CutSubject {
         make: &make,
         cuts: vec![
@@ -61,7 +52,7 @@ fn cuts_keep_the_cut_contract() {
                 Point3::new(0.5, 0.3, 0.35),
                 Point3::new(0.46, -0.3, 0.6),
             ]]),
-            CutSurface::Triangles(strip),
+            CutSurface::Triangles(curved_strip()),
             CutSurface::Plane { point: Point3::new(0.0, 0.0, 0.3), normal: Vector3::z() },
         ],
         placement: Isometry3::new(Vector3::new(0.37, -1.21, 2.53), Vector3::new(0.3, -0.5, 0.8)),
