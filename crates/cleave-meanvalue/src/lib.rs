@@ -28,6 +28,6 @@ pub use coordinates::{BOUNDARY_TOLERANCE, GRADIENT_INSET, Workspace, mean_value_
 pub use cut::ON_PLANE_TOLERANCE;
 pub use cuttable::{QUALITY_FLOOR, quality};
 pub use element::{ElementIntegrals, quadrature};
-pub use mesh::{CutReport, DEFAULT_REFINEMENT, MeanValueError, MeanValueMesh};
+pub use mesh::{CutReport, DEFAULT_REFINEMENT, MeanValueError, MeanValueMesh, SPLIT_NORMALS, SPLIT_SPACING};
 pub use mesher::{MeshingReport, mesh_closed_surface};
 pub use polyhedron::{ConvexPolyhedron, GEOMETRY_TOLERANCE, PolyhedronError};

@@ -20,6 +20,17 @@ use thiserror::Error;
 /// tetrahedron; the gradient correction keeps the patch test exact at any level.
 pub const DEFAULT_REFINEMENT: u32 = 0;
 
+/// Normals of the three plane families of [`MeanValueMesh::from_split_box`] (oblique to every
+/// axis and to each other).
+pub const SPLIT_NORMALS: [[Real; 3]; 3] = [[1.0, 0.7, 0.3], [-0.4, 1.0, 0.9], [0.2, -0.5, 1.0]];
+
+/// Where the first plane of each family lies, in spacings from the box's lowest offset (spread
+/// so no two families' planes meet on the cells' lattice at once).
+const SPLIT_PHASES: [Real; 3] = [0.382, 0.236, 0.708];
+
+/// Distance between the planes of a family of [`MeanValueMesh::from_split_box`], in cell edges.
+pub const SPLIT_SPACING: Real = 1.5;
+
 /// Polar iterations per rotation extraction (warm-started).
 const ROTATION_ITERATIONS: usize = 8;
 
@@ -350,6 +361,87 @@ impl MeanValueMesh {
             }
         }
         Self::new(material, rest, elements, DEFAULT_REFINEMENT)
+    }
+
+    /// The mesh of `cells`, their vertices welded into nodes where they coincide (to 1e-9 of
+    /// the largest cell's diameter). The cells must meet face to face after welding (a vertex on
+    /// a neighbour's face or edge must be a vertex of that face), or `NotConforming` names one.
+    pub fn from_cells(material: Material, cells: Vec<ConvexPolyhedron>) -> Result<Self, MeanValueError> {
+        let size = cells.iter().map(ConvexPolyhedron::diameter).fold(0.0, Real::max);
+        let tolerance = 1e-9 * size.max(Real::MIN_POSITIVE);
+        // Points are bucketed by a grid of the tolerance; a point is searched for in its bucket
+        // and the 26 around it, so two copies of one vertex straddling a bucket edge still weld.
+        let bucket = |p: &Point3<Real>| [p.x, p.y, p.z].map(|c| (c / tolerance).floor() as i64);
+        let mut rest: Vec<Point3<Real>> = Vec::new();
+        let mut buckets: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
+        let mut elements = Vec::with_capacity(cells.len());
+        for cell in cells {
+            let mut ids = Vec::with_capacity(cell.vertices().len());
+            for p in cell.vertices() {
+                let b = bucket(p);
+                let found = (0..27).find_map(|k: i64| {
+                    let key = [b[0] + k % 3 - 1, b[1] + (k / 3) % 3 - 1, b[2] + k / 9 - 1];
+                    buckets.get(&key)?.iter().copied().find(|&n| (rest[n as usize] - p).norm() <= tolerance)
+                });
+                ids.push(found.unwrap_or_else(|| {
+                    rest.push(*p);
+                    let n = (rest.len() - 1) as u32;
+                    buckets.entry(b).or_default().push(n);
+                    n
+                }));
+            }
+            elements.push((cell, ids));
+        }
+        Self::new(material, rest, elements, DEFAULT_REFINEMENT)
+    }
+
+    /// The box `origin + h·[0, dims]` as cuboid cells split by three families of parallel
+    /// oblique planes, [`SPLIT_SPACING`] cell edges apart along their normals
+    /// ([`SPLIT_NORMALS`], mean-value.md §11): nearly every cell is cut into convex polyhedra
+    /// with triangle to heptagon faces, and since the planes scale with the cells the meshes
+    /// look alike at every `h`, which is what a convergence study on polyhedral meshes needs.
+    /// Conforming by construction: a plane that crosses a shared face or edge splits it alike
+    /// in every cell that holds it.
+    pub fn from_split_box(
+        material: Material,
+        origin: Point3<Real>,
+        h: Real,
+        dims: [usize; 3],
+    ) -> Result<Self, MeanValueError> {
+        if dims.contains(&0) || !(h.is_finite() && h > 0.0) {
+            return Err(MeanValueError::BadBox { dims, h });
+        }
+        let extent = Vector3::new(dims[0] as Real, dims[1] as Real, dims[2] as Real) * h;
+        let mut cells = Vec::with_capacity(4 * dims.iter().product::<usize>());
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let lo = origin + Vector3::new(i as Real, j as Real, k as Real) * h;
+                    let cell = ConvexPolyhedron::cuboid(lo, lo + Vector3::repeat(h))
+                        .map_err(|source| MeanValueError::Element { element: cells.len(), source })?;
+                    cells.push(cell);
+                }
+            }
+        }
+        for (normal, phase) in SPLIT_NORMALS.iter().zip(SPLIT_PHASES) {
+            let n = Vector3::from(*normal).normalize();
+            // The offsets the box spans along n, from its lowest corner.
+            let low = origin.coords.dot(&n) + (0..3).map(|a| (extent[a] * n[a]).min(0.0)).sum::<Real>();
+            let span: Real = (0..3).map(|a| (extent[a] * n[a]).abs()).sum();
+            let spacing = SPLIT_SPACING * h;
+            let mut offset = low + phase * spacing;
+            while offset < low + span {
+                cells = cells
+                    .into_iter()
+                    .flat_map(|c| {
+                        let (below, above) = c.split(&n, offset, 1e-12);
+                        [below, above].into_iter().flatten()
+                    })
+                    .collect();
+                offset += spacing;
+            }
+        }
+        Self::from_cells(material, cells)
     }
 
     /// What the last cut's sliver merging did.

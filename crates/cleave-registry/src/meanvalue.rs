@@ -17,20 +17,35 @@ use cleave_testkit::compare::{
 pub const SLIVER_OFFSET: Real = 1e-5;
 
 /// The stability grid's sliver case for mean value elements, whose slivers come from cuts: the
-/// box of cuboids cracked by the plane x = x₀ + [`SLIVER_OFFSET`]·h (x₀ the node plane nearest
-/// the middle) from 40 % of its height up through the top, as for virtual node tetrahedra. One
-/// piece, with a column of cells split into a slab 1e-5 h thick and the rest.
-pub fn sliver_beam(material: &Material, grid: &BoxGrid) -> Result<MeanValueMesh, String> {
+/// box `mesh` of `grid` (cuboids, or split cuboids) cracked by the plane x = x₀ +
+/// [`SLIVER_OFFSET`]·h (x₀ the node plane nearest the middle) from 40 % of its height up
+/// through the top, as for virtual node tetrahedra. One piece; on cuboids, a column of cells
+/// split into a slab 1e-5 h thick and the rest (what sliver merging leaves of it).
+pub fn sliver_beam(mut mesh: MeanValueMesh, grid: &BoxGrid) -> Result<MeanValueMesh, String> {
     let (lo, hi) = (grid.origin, grid.max_corner());
     let x = lo.x + (grid.dims[0] / 2) as Real * grid.h + SLIVER_OFFSET * grid.h;
-    let mut mesh = MeanValueMesh::from_box(*material, lo, grid.h, grid.dims).map_err(|e| e.to_string())?;
     let crack = cleave_testkit::problems::crack::half_plane(&lo, &hi, x, lo.z + 0.4 * (hi.z - lo.z), grid.h);
     mesh.cut(&crack).map_err(|e| format!("cracking the sliver beam: {e}"))?;
     Ok(mesh)
 }
 
-/// Registration of `cleave-meanvalue`: one variant, mean value coordinates with the polygon face
-/// rule (docs/math/mean-value.md §2.3).
+/// The box of `grid` in `variant`'s cells: cuboids (`polygon`) or cuboids split by the plane
+/// families of `MeanValueMesh::from_split_box` (`split`).
+fn box_mesh(variant: &str, material: &Material, grid: &BoxGrid) -> Result<MeanValueMesh, BuildError> {
+    match variant {
+        "split" => MeanValueMesh::from_split_box(*material, grid.origin, grid.h, grid.dims),
+        _ => {
+            crate::only_variant("meanvalue", variant, "polygon")?;
+            MeanValueMesh::from_box(*material, grid.origin, grid.h, grid.dims)
+        }
+    }
+    .map_err(|e| BuildError(e.to_string()))
+}
+
+/// Registration of `cleave-meanvalue`: mean value coordinates with the polygon face rule
+/// (docs/math/mean-value.md §2.3) on boxes of cuboids (`polygon`, the variant that cuts and
+/// that scenes use), and on boxes whose cuboids are split by three families of oblique planes
+/// (`split`, §11: the convergence of the method on general convex polyhedra).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct MeanValueBackend;
 
@@ -40,7 +55,7 @@ impl CompareBackend for MeanValueBackend {
     }
 
     fn variants(&self) -> Vec<String> {
-        vec!["polygon".into()]
+        vec!["polygon".into(), "split".into()]
     }
 
     fn build_box(
@@ -50,9 +65,7 @@ impl CompareBackend for MeanValueBackend {
         grid: &BoxGrid,
         dirichlet: &DirichletSpec,
     ) -> Result<BuiltProblem, BuildError> {
-        crate::only_variant("meanvalue", variant, "polygon")?;
-        let mesh = MeanValueMesh::from_box(*material, grid.origin, grid.h, grid.dims)
-            .map_err(|e| BuildError(e.to_string()))?;
+        let mesh = box_mesh(variant, material, grid)?;
         let elements = mesh.num_elements();
         Ok(nodal_problem(Box::new(mesh), elements, dirichlet))
     }
@@ -71,9 +84,7 @@ impl CompareBackend for MeanValueBackend {
         dirichlet: &DirichletSpec,
         surface: &CutSurface,
     ) -> Result<CutProblem, CutError> {
-        crate::only_variant("meanvalue", variant, "polygon").map_err(|e| CutError::Build(e.0))?;
-        let mut mesh = MeanValueMesh::from_box(*material, grid.origin, grid.h, grid.dims)
-            .map_err(|e| CutError::Build(e.to_string()))?;
+        let mut mesh = box_mesh(variant, material, grid).map_err(|e| CutError::Build(e.0))?;
         let change = mesh.cut(surface).map_err(|e| CutError::Build(e.to_string()))?;
         let elements = mesh.num_elements();
         Ok(CutProblem { built: nodal_problem(Box::new(mesh), elements, dirichlet), change })
@@ -92,8 +103,7 @@ impl CompareBackend for MeanValueBackend {
         if case != ExtremeCase::Sliver {
             return Ok(None);
         }
-        crate::only_variant("meanvalue", variant, "polygon")?;
-        let mesh = sliver_beam(material, grid).map_err(BuildError)?;
+        let mesh = sliver_beam(box_mesh(variant, material, grid)?, grid).map_err(BuildError)?;
         let elements = mesh.num_elements();
         Ok(Some(nodal_problem(Box::new(mesh), elements, dirichlet)))
     }
