@@ -17,15 +17,24 @@ use std::collections::HashMap;
 /// Weights below this are dropped from a new node's row (coordinates that vanish on a face).
 const ROW_EPSILON: Real = 1e-15;
 
-/// The quality floor of an element made by a cut: its volume over its diameter cubed, scaled so
-/// that a cube has 1 (a regular tetrahedron 0.61). An element below it is merged into the
-/// neighbour across its largest uncut shared face with which it makes a convex element
-/// (mean-value.md §9, "Slivers").
+/// The quality floor of an element made by a cut (see [`quality`]). An element below it is
+/// merged into the neighbour across an uncut shared face with which it makes the best convex
+/// element (mean-value.md §9, "Slivers").
 pub const QUALITY_FLOOR: Real = 1e-2;
 
-/// An element's quality (see [`QUALITY_FLOOR`]).
+/// An element's quality: its width (the least, over its faces, of the distance from the face's
+/// plane to the farthest vertex behind it) over its diameter, times √3 so that a cube has 1 (a
+/// regular tetrahedron 1.41). Its stiffness per unit mass grows like 1/width², so this ratio,
+/// squared, bounds how much stiffer than its neighbours' an element's stiffest mode is: a flat
+/// sliver (thickness t) and a needle (cross-section w × w) both score t/diam or w/diam
+/// (mean-value.md §9, "Slivers"; volume over diameter cubed scored a needle (w/diam)², far
+/// below what its stiffness says).
 pub fn quality(shape: &ConvexPolyhedron) -> Real {
-    shape.volume() * 27f64.sqrt() / shape.diameter().powi(3)
+    let vertices = shape.vertices();
+    let width = (0..shape.faces().len())
+        .map(|f| vertices.iter().map(|v| shape.depth(f, v)).fold(0.0, Real::max))
+        .fold(Real::INFINITY, Real::min);
+    width * 3f64.sqrt() / shape.diameter()
 }
 
 /// An element being rebuilt: its shape, global nodes, cut faces and parent.
@@ -59,6 +68,51 @@ pub(crate) fn element_of(
 /// Global faces of a rebuilt element.
 fn global_faces(element: &Rebuilt) -> Vec<Vec<u32>> {
     element.0.faces().iter().map(|f| f.iter().map(|&i| element.1[i]).collect()).collect()
+}
+
+/// The area of a planar polygon.
+fn newell_area(points: &[Point3<Real>]) -> Real {
+    let mut n = Vector3::zeros();
+    for k in 0..points.len() {
+        n += points[k].coords.cross(&points[(k + 1) % points.len()].coords);
+    }
+    0.5 * n.norm()
+}
+
+/// The union of the elements `group` (joined through uncut faces) as one element, if it is a
+/// valid convex polyhedron that keeps every node of its members as a vertex (a node only on the
+/// faces between them would be left without an element); its parent is the second member's.
+fn union_of(elements: &[Rebuilt], group: &[usize], positions: &[Point3<Real>], tolerance: Real) -> Option<Rebuilt> {
+    let key = |f: &[u32]| {
+        let mut k = f.to_vec();
+        k.sort_unstable();
+        k
+    };
+    let mut count: HashMap<Vec<u32>, usize> = HashMap::new();
+    for &m in group {
+        for face in global_faces(&elements[m]) {
+            *count.entry(key(&face)).or_default() += 1;
+        }
+    }
+    let mut faces = Vec::new();
+    let mut cut = Vec::new();
+    for &m in group {
+        for (face, &c) in global_faces(&elements[m]).into_iter().zip(&elements[m].2) {
+            match count[&key(&face)] {
+                1 => {
+                    faces.push(face);
+                    cut.push(c);
+                }
+                // A face between two members: inside the union, unless a cut separates them
+                // there (then no union).
+                2 if !c => {}
+                _ => return None,
+            }
+        }
+    }
+    let (shape, nodes) = element_of(&faces, positions, tolerance).ok()?;
+    let members: std::collections::HashSet<u32> = group.iter().flat_map(|&m| elements[m].1.iter().copied()).collect();
+    (nodes.len() == members.len()).then(|| (shape, nodes, cut, elements[group[1]].3))
 }
 
 /// Merges each element below [`QUALITY_FLOOR`], worst first, into the neighbour across an
@@ -107,55 +161,70 @@ fn merge_pass(elements: &mut Vec<Rebuilt>, positions: &[Point3<Real>], tolerance
             continue;
         }
         let faces_s = global_faces(&elements[s]);
-        let mut best: Option<(Real, usize, Rebuilt)> = None;
-        let mut neighbours: Vec<usize> = Vec::new();
+        // Neighbours across uncut faces, and those across the faces parallel to the sliver's
+        // largest uncut face (across its thin direction).
+        let (mut neighbours, mut across): (Vec<usize>, Vec<usize>) = (Vec::new(), Vec::new());
+        let shape_s = &elements[s].0;
+        let area =
+            |f: usize| newell_area(&shape_s.faces()[f].iter().map(|&i| shape_s.vertices()[i]).collect::<Vec<_>>());
+        let largest = (0..faces_s.len()).filter(|&f| !elements[s].2[f]).max_by(|&a, &b| area(a).total_cmp(&area(b)));
         for (f, face) in faces_s.iter().enumerate() {
             if elements[s].2[f] {
                 continue;
             }
+            let parallel = largest.is_some_and(|l| shape_s.normals()[f].dot(&shape_s.normals()[l]) > 1.0 - 1e-9);
             for &n in sides.get(&key(face)).into_iter().flatten() {
-                if n != s && !dead[n] && !neighbours.contains(&n) {
-                    neighbours.push(n);
+                if n != s && !dead[n] {
+                    if !neighbours.contains(&n) {
+                        neighbours.push(n);
+                    }
+                    if parallel && !across.contains(&n) {
+                        across.push(n);
+                    }
                 }
             }
         }
-        for n in neighbours {
-            let faces_n = global_faces(&elements[n]);
-            let shared: Vec<Vec<u32>> = faces_s
-                .iter()
-                .enumerate()
-                .filter(|(f, face)| !elements[s].2[*f] && faces_n.iter().any(|g| key(g) == key(face)))
-                .map(|(_, face)| key(face))
-                .collect();
-            let keep = |faces: &[Vec<u32>], cut: &[bool]| -> Vec<(Vec<u32>, bool)> {
-                faces.iter().zip(cut).filter(|(f, _)| !shared.contains(&key(f))).map(|(f, &c)| (f.clone(), c)).collect()
-            };
-            let mut union = keep(&faces_s, &elements[s].2);
-            union.extend(keep(&faces_n, &elements[n].2));
-            let (union_faces, union_cut): (Vec<Vec<u32>>, Vec<bool>) = union.into_iter().unzip();
-            let Ok((shape, nodes)) = element_of(&union_faces, positions, tolerance) else { continue };
-            // Every node of both must remain a vertex of the union (a node only on the shared
-            // faces would be left without an element).
-            if nodes.len() < elements[s].1.iter().chain(&elements[n].1).collect::<std::collections::HashSet<_>>().len()
-            {
-                continue;
-            }
-            let q = quality(&shape);
-            if best.as_ref().is_none_or(|(b, ..)| q > *b) {
-                best = Some((q, n, (shape, nodes, union_cut, elements[n].3)));
-            }
-        }
-        if let Some((_, n, union)) = best {
-            for face in global_faces(&elements[n]).iter().chain(&faces_s) {
-                if let Some(list) = sides.get_mut(&key(face)) {
-                    list.retain(|&e| e != n && e != s);
+        // Candidates, in order of preference: one sound neighbour (the best union), the
+        // neighbours across the thin direction together (a slab along several cells, or a
+        // neighbour split by an earlier cut), all neighbours together, one sliver neighbour.
+        let sound: Vec<Vec<usize>> =
+            neighbours.iter().filter(|&&n| quality(&elements[n].0) >= QUALITY_FLOOR).map(|&n| vec![s, n]).collect();
+        let weak: Vec<Vec<usize>> =
+            neighbours.iter().filter(|&&n| quality(&elements[n].0) < QUALITY_FLOOR).map(|&n| vec![s, n]).collect();
+        let mut best: Option<(Real, Vec<usize>, Rebuilt)> = None;
+        for tier in [sound, vec![[&[s][..], &across].concat()], vec![[&[s][..], &neighbours].concat()], weak] {
+            for group in tier {
+                if group.len() < 2 {
+                    continue;
+                }
+                let Some(union) = union_of(elements, &group, positions, tolerance) else { continue };
+                let q = quality(&union.0);
+                if best.as_ref().is_none_or(|(b, ..)| q > *b) {
+                    best = Some((q, group, union));
                 }
             }
+            if best.is_some() {
+                break;
+            }
+        }
+        if let Some((_, group, union)) = best {
+            for &m in &group {
+                for face in global_faces(&elements[m]) {
+                    if let Some(list) = sides.get_mut(&key(&face)) {
+                        list.retain(|&e| e != m);
+                    }
+                }
+            }
+            let keeper = group[1];
             for face in global_faces(&union) {
-                sides.entry(key(&face)).or_default().push(n);
+                sides.entry(key(&face)).or_default().push(keeper);
             }
-            elements[n] = union;
-            dead[s] = true;
+            elements[keeper] = union;
+            for &m in &group {
+                if m != keeper {
+                    dead[m] = true;
+                }
+            }
             merged += 1;
         }
     }

@@ -110,11 +110,24 @@ fn cuts_keep_the_cut_contract() {
     assert_all_pass(&checks);
 }
 
-#[test]
-fn random_cut_sequences_never_panic_and_keep_every_element_valid() {
-    let mut random = cleave_testkit::Lcg::new(3);
-    let (mut failed, mut cuts, mut worst) = (0usize, 0usize, Real::MAX);
-    let (mut merged, mut below, mut degenerate) = (0, 0, 0);
+/// What a sequence of random cuts left: cuts refused, slivers merged, left below the floor,
+/// degenerate sections kept whole, and the worst element quality seen.
+struct SequenceReport {
+    cuts: usize,
+    refused: usize,
+    merged: usize,
+    below: usize,
+    degenerate: usize,
+    worst: Real,
+}
+
+/// Six rounds of six random cuts on a fresh 4 × 3 × 3 box of 0.1 m cubes (soups of three
+/// triangles in even rounds, planes in odd ones); with `near_node_planes`, every third cut is
+/// instead a plane 1e-9 to 1e-3 of a cell off a node plane and tilted 1e-4 from it. Checks after
+/// every cut that nothing panicked and the volume is kept to 1e-12.
+fn random_sequences(seed: u64, near_node_planes: bool) -> SequenceReport {
+    let mut random = cleave_testkit::Lcg::new(seed);
+    let mut report = SequenceReport { cuts: 0, refused: 0, merged: 0, below: 0, degenerate: 0, worst: Real::MAX };
     for round in 0..6 {
         let mut mesh = moved_box(Point3::new(0.0, 0.0, 0.0), 0.1, [4, 3, 3], &Isometry3::identity());
         let volume: Real = mesh.pieces().iter().map(|p| p.volume).sum();
@@ -127,28 +140,36 @@ fn random_cut_sequences_never_panic_and_keep_every_element_valid() {
                     [p(), p(), p()]
                 })
                 .collect();
-            let surface = if round % 2 == 0 {
+            let surface = if near_node_planes && report.cuts % 3 == 2 {
+                let axis = report.cuts % 9 / 3;
+                let mut point = centre;
+                point[axis] =
+                    0.1 * (1.0 + (2.0 * random.next()).floor()) + 0.1 * 10f64.powf(-6.0 + 3.0 * random.next());
+                let mut normal = Vector3::new(random.next(), random.next(), random.next()) * 1e-4;
+                normal[axis] = 1.0;
+                CutSurface::Plane { point, normal }
+            } else if round % 2 == 0 {
                 CutSurface::Triangles(soup)
             } else {
                 CutSurface::Plane { point: centre, normal: Vector3::new(random.next(), random.next(), random.next()) }
             };
-            cuts += 1;
+            report.cuts += 1;
             match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| mesh.cut(&surface))) {
                 Err(_) => panic!("a cut panicked"),
                 Ok(Err(e)) => {
-                    failed += 1;
+                    report.refused += 1;
                     println!("refused: {e}");
                 }
                 Ok(Ok(_)) => {
-                    merged += mesh.last_cut().merged;
-                    below += mesh.last_cut().below_floor;
-                    degenerate += mesh.last_cut().degenerate;
+                    report.merged += mesh.last_cut().merged;
+                    report.below += mesh.last_cut().below_floor;
+                    report.degenerate += mesh.last_cut().degenerate;
                 }
             }
             let after: Real = mesh.pieces().iter().map(|p| p.volume).sum();
             assert!(((after - volume) / volume).abs() < 1e-12);
             for e in 0..mesh.num_elements() {
-                worst = worst.min(quality(mesh.element(e).0));
+                report.worst = report.worst.min(quality(mesh.element(e).0));
             }
         }
         println!(
@@ -159,12 +180,32 @@ fn random_cut_sequences_never_panic_and_keep_every_element_valid() {
         );
     }
     println!(
-        "{failed} of {cuts} cuts refused; {merged} slivers merged, {below} left below {QUALITY_FLOOR}, {degenerate} degenerate sections kept whole; worst element quality {worst:.3e}"
+        "{} of {} cuts refused; {} slivers merged, {} left below {QUALITY_FLOOR}, {} degenerate sections kept whole; worst element quality {:.3e}",
+        report.refused, report.cuts, report.merged, report.below, report.degenerate, report.worst
     );
-    // Measured: none refused, 13 merged, one left at 7.4e-3 (no neighbour makes a convex
-    // element with it). Without merging the worst is 1.1e-3.
-    assert_eq!(failed, 0);
-    assert!(worst > 5e-3, "worst element quality {worst}");
+    report
+}
+
+#[test]
+fn random_cut_sequences_never_panic_and_keep_every_element_above_the_floor() {
+    // Measured (seed 3): none refused, no sliver to merge, worst quality 4.0e-2.
+    let report = random_sequences(3, false);
+    assert_eq!(report.refused, 0);
+    assert!(report.worst >= QUALITY_FLOOR, "worst element quality {}", report.worst);
+}
+
+/// Planes a hair off node planes leave slabs and wedges. A slab next to a sound neighbour
+/// merges into it; a wedge where a tilted plane crosses a node plane inside a cell sits on part
+/// of its neighbours' face and rises from nothing, so no union with neighbours on its side is
+/// convex (mean-value.md §9, "Slivers"): those stay, counted in `CutReport::below_floor`.
+#[test]
+fn cuts_next_to_node_planes_merge_their_slabs_and_report_what_stays() {
+    let report = random_sequences(3, true);
+    assert_eq!(report.refused, 0);
+    assert!(report.merged > 0, "the near-node planes leave slivers to merge");
+    // Measured: 83 merged, 51 left (worst 1.1e-5, a wedge). The report must count every element
+    // left below the floor: the worst seen is below it exactly when some were reported.
+    assert_eq!(report.below > 0, report.worst < QUALITY_FLOOR);
 }
 
 /// wicke2007's Fig. 9 block (3 × 3 × 3 cubes of 0.1 m), as `scenes/block_slice_meanvalue.ron`
