@@ -980,10 +980,11 @@ fn cut_cantilever_section(w: &mut String, rows: &[Row], header: &str, load: &str
          overhanging the beam by one cell on the open sides) and applied to its uncut box with its own cutting \
          (`CompareBackend::build_cut_box`): **virtualnode/linear-tet** by `Cuttable::cut` (the generalized \
          virtual node algorithm; x = 2 is a node plane of its BCC lattice, and so is z = 0.5 for even n); \
-         **voxel/trilinear** separates the cubes across every cube face the soup covers (the conforming \
-         4n × n × n hexahedral grid of §5 whose nodes on {{x = 2, z > 0.5}} are duplicated for the cubes right \
-         of the plane: (n + 1)·n/2 nodes, counted in the tests). Levels start at n = 2 and are even: for odd n \
-         the front z = 0.5 crosses the middle of a row of cube faces, which cubes cannot express. The crack \
+         **voxel/trilinear** by `Cuttable::cut`, which separates the cubes across every face whose dual edge \
+         (centre to centre) the soup crosses (the conforming 4n × n × n hexahedral grid of §5 whose nodes on \
+         {{x = 2, z > 0.5}} are duplicated for the cubes right of the plane, counted in the tests). Levels \
+         start at n = 2 and are even (for odd n the front z = 0.5 runs through the centres of a row of cube \
+         faces, which the closed crack takes). The crack \
          opening is u_x(2⁺, 0.5, 1) − u_x(2⁻, 0.5, 1), each side evaluated by embedding 1e-4 h from the plane. \
          Registered methods that cannot cut do not run it.\n"
     );

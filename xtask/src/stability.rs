@@ -121,8 +121,9 @@ pub fn stability(args: StabilityArgs) -> Result<()> {
          `CompareBackend::build_cut_box`): the plane x = 0.5 (a node plane) through the whole width from the \
          top face down to half the depth, applied before the start, at E ∈ {{1e6, 1e12}} Pa, ν ∈ {{0.3, \
          0.4999}}, h = 1/60 s; and the same crack {NEAR_NODE_PLANE_OFFSET:e} h off the node plane, where \
-         cutting leaves tiny and sliver pieces (voxel cubes separate along whole faces only, so that cell is \
-         not applicable to them; what the virtual node cells meet there: `docs/math/virtual-node.md` §4). Every \
+         cutting leaves tiny and sliver pieces (voxel cubes separate across the faces whose dual edges the \
+         crack crosses, the same faces as on the node plane; what the virtual node cells meet there: \
+         `docs/math/virtual-node.md` §4). Every \
          backend runs \
          with its defaults (for DG the paper's penalty rule); what the ν = 0.4999 row measured before \
          and after the corotated Dirichlet fix is in `docs/math/dg.md` §9. Raw cells: \

@@ -33,15 +33,6 @@ pub enum VoxelError {
     /// A face to separate does not lie between two cubes of the mesh.
     #[error("face of cube ({0}, {1}, {2}) towards +{3} does not lie between two cubes of the mesh")]
     NotInteriorFace(i32, i32, i32, char),
-    /// A cut covers part of a cube face: cubes separate along whole faces only.
-    #[error(
-        "the cut covers the face of cube ({0}, {1}, {2}) towards +{3} in part; voxel cubes separate along whole \
-         faces only"
-    )]
-    PartlyCoveredFace(i32, i32, i32, char),
-    /// A cut covers no cube face.
-    #[error("the cut covers no cube face (voxel cubes separate along faces only)")]
-    NoFaceCovered,
 }
 
 /// The face between the cube at integer coordinates `cell` and its neighbour at `cell + e_axis`.
@@ -76,7 +67,7 @@ const ROTATION_ITERATIONS: usize = 8;
 const DEFAULT_COARSENING: i32 = 2;
 
 /// A mesh of equal cubes with shared corners.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct VoxelMesh {
     material: Material,
     origin: Point3<Real>,
@@ -93,6 +84,8 @@ pub struct VoxelMesh {
     coarsening: i32,
     /// Faces across which cubes do not share nodes (sorted).
     cut_faces: Vec<CubeFace>,
+    /// Why `Cuttable::cut` refuses, if it does ([`VoxelMesh::refuse_cuts`]).
+    refused: Option<String>,
 }
 
 impl VoxelMesh {
@@ -250,12 +243,25 @@ impl VoxelMesh {
             epoch: 0,
             coarsening: DEFAULT_COARSENING,
             cut_faces,
+            refused: None,
         })
     }
 
     /// The faces across which cubes do not share nodes, sorted.
     pub fn cut_faces(&self) -> &[CubeFace] {
         &self.cut_faces
+    }
+
+    /// Makes `Cuttable::cut` refuse with `reason`: for a body whose render surface is not its
+    /// cubes' boundary (a surface mesh embedded in the cubes), whose pieces need the closing
+    /// surfaces of mueller2004 §3.1 to stay closed.
+    pub fn refuse_cuts(&mut self, reason: impl Into<String>) {
+        self.refused = Some(reason.into());
+    }
+
+    /// Why cuts are refused, if they are.
+    pub fn refused_cuts(&self) -> Option<&str> {
+        self.refused.as_deref()
     }
 
     /// This mesh with the cubes also separated across `faces` (added to [`VoxelMesh::cut_faces`]),
@@ -267,6 +273,7 @@ impl VoxelMesh {
         let all: Vec<CubeFace> = self.cut_faces.iter().chain(faces).copied().collect();
         let mut mesh = Self::with_cut_faces(self.material, self.origin, self.h, &self.cells, &all)?;
         mesh.coarsening = self.coarsening;
+        mesh.refused.clone_from(&self.refused);
         let source: Vec<u32> = {
             let mut source = vec![u32::MAX; mesh.num_nodes()];
             for (new, old) in mesh.cube_nodes().iter().zip(self.cube_nodes()) {
@@ -552,6 +559,16 @@ impl Discretization for VoxelMesh {
 
     fn coarse_space(&self) -> Option<CoarseSpace> {
         Some(self.coarse_space_with_ratio(self.coarsening))
+    }
+
+    /// `None` once cuts are refused ([`VoxelMesh::refuse_cuts`]): such a body renders the
+    /// surface it embeds, not its cubes.
+    fn as_cuttable(&mut self) -> Option<&mut dyn cleave_core::Cuttable> {
+        if self.refused.is_some() { None } else { Some(self) }
+    }
+
+    fn copy_for_cutting(&self) -> Option<Box<dyn Discretization>> {
+        Some(Box::new(self.clone()))
     }
 
     fn add_internal_force(&self, rotations: &[Matrix3<Real>], x: &[Real], out: &mut [Real]) {
