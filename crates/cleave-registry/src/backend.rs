@@ -73,9 +73,6 @@ pub struct BuiltSolid {
     pub pins: ResolvedPins,
     /// The surface to render in rest space (the input mesh, or the box's boundary).
     pub surface: TriangleMesh,
-    /// Why this body cannot be cut although its backend cuts (a scene whose timeline cuts is
-    /// then refused when it is built, with this reason), or `None`.
-    pub cut_refusal: Option<String>,
 }
 
 /// What a backend can do beyond simulating.

@@ -200,7 +200,7 @@ impl Backend for DgBackend {
             .map_err(|e| BackendError::Build(format!("discretization: {e}")))?;
         let pins = ResolvedPins { pinned_dofs: Vec::new(), extra_load: dg.dirichlet_load().to_vec() };
         let elements = dg.num_elements();
-        Ok(BuiltSolid { discretization: Box::new(dg), elements, element_size: h, pins, surface, cut_refusal: None })
+        Ok(BuiltSolid { discretization: Box::new(dg), elements, element_size: h, pins, surface })
     }
 
     fn resolve_pins(

@@ -160,6 +160,6 @@ impl Backend for MeanValueBackend {
         // The cell edge, as virtual node reports its lattice's (the mean element of a meshed
         // surface is a sixth of a cube, whose cube root would understate it).
         let (elements, element_size) = (mesh.num_elements(), h);
-        Ok(BuiltSolid { discretization: Box::new(mesh), elements, element_size, pins, surface, cut_refusal: None })
+        Ok(BuiltSolid { discretization: Box::new(mesh), elements, element_size, pins, surface })
     }
 }

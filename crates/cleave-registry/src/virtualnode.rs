@@ -55,14 +55,7 @@ impl Backend for VirtualNodeBackend {
         // The scene renders the backend's own surface (`Cuttable::surface`); this one is only
         // the input's, for reports.
         let rest = surface.clone();
-        Ok(BuiltSolid {
-            discretization: Box::new(mesh),
-            elements,
-            element_size: h,
-            pins,
-            surface: rest,
-            cut_refusal: None,
-        })
+        Ok(BuiltSolid { discretization: Box::new(mesh), elements, element_size: h, pins, surface: rest })
     }
 }
 

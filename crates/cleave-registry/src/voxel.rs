@@ -2,9 +2,8 @@
 //! Dirichlet data and pins are imposed strongly by pinning the nodes in the region. It cuts as
 //! scenes do (`Cuttable::cut`: the cubes on both sides of every face whose dual edge the cut
 //! crosses get their own nodes), which for the crack of benchmarks.md §5 on cube faces is the
-//! conforming cracked hexahedral grid. Scenes cut boxes of cubes (`Cuttable`: faces whose
-//! dual edge crosses the cut); a body voxelized from a surface mesh refuses cuts until its
-//! closing surfaces exist.
+//! conforming cracked hexahedral grid. A body voxelized from a surface mesh carries that mesh
+//! (`VoxelMesh::carry_surface`), separated along triangle edges and capped as it is cut.
 
 use crate::backend::{
     Backend, BackendError, BuiltSolid, Shape, SolidRequest, box_dims, cell_size_for, one_size, parse_settings,
@@ -15,10 +14,6 @@ use cleave_testkit::compare::{
     corner_pushed_in, nodal_problem, stretch_start,
 };
 use cleave_voxel::VoxelMesh;
-
-/// Why a voxel body built from a surface mesh cannot be cut yet.
-const SURFACE_CUT_REFUSAL: &str = "voxel cuts bodies of whole cubes (a Box object) for now: the pieces of a surface \
-     mesh embedded in cubes need the closing surfaces of mueller2004 §3.1, which are not built yet";
 
 /// Registration of `cleave-voxel`: one variant, trilinear cubes with the closed-form stiffness.
 #[derive(Clone, Copy, Debug, Default)]
@@ -116,7 +111,7 @@ impl Backend for VoxelBackend {
                 let grid = cleave_geometry::voxelize(surface, h).map_err(|e| mesh_error(&e))?;
                 let mut mesh = VoxelMesh::new(request.material, grid.origin, grid.cell_size, &grid.cells)
                     .map_err(|e| mesh_error(&e))?;
-                mesh.refuse_cuts(SURFACE_CUT_REFUSAL);
+                mesh.carry_surface(surface).map_err(|e| mesh_error(&e))?;
                 let rest = surface.clone();
                 (mesh, rest)
             }
@@ -133,7 +128,6 @@ impl Backend for VoxelBackend {
         };
         let pins = self.resolve_pins(&mesh, request.pins)?;
         let (elements, element_size) = (mesh.num_cubes(), mesh.cell_size());
-        let cut_refusal = mesh.refused_cuts().map(str::to_string);
-        Ok(BuiltSolid { discretization: Box::new(mesh), elements, element_size, pins, surface, cut_refusal })
+        Ok(BuiltSolid { discretization: Box::new(mesh), elements, element_size, pins, surface })
     }
 }

@@ -106,14 +106,18 @@ fn open_mesh_names_the_boundary_edge() {
 
 #[test]
 fn a_cut_on_a_backend_that_cannot_cut_is_a_clear_build_error() {
-    let text = GOOD.replace(
+    // DG cannot cut yet (issue 38).
+    let good = GOOD
+        .replace(r#"backend: "voxel","#, r#"backend: "dg","#)
+        .replace(r#""voxel": (cell_size: 0.25)"#, r#""dg": (cell_size: 0.25)"#);
+    let text = good.replace(
         "    steps: 3,\n",
         "    steps: 3,\n    timeline: [Cut(time: 0.1, surface: Plane(point: (0.5, 0.0, 0.0), normal: (1.0, 0.0, 0.0)))],\n",
     );
     let loaded = parse_scene(Path::new("test.ron"), &text).unwrap();
     let message = Simulation::build(&loaded, None).err().expect("must fail").to_string();
-    assert!(message.contains("timeline[0]") && message.contains("voxel") && message.contains("Cut"), "{message}");
-    let text = GOOD.replace(
+    assert!(message.contains("timeline[0]") && message.contains("dg") && message.contains("Cut"), "{message}");
+    let text = good.replace(
         "    steps: 3,\n",
         "    steps: 3,\n    timeline: [Blade(start: 0.0, end: 1.0, polygon: [(0, 0, 0), (1, 0, 0), (0, 1, 0)], path: [(time: 0.0)])],\n",
     );

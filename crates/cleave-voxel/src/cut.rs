@@ -4,9 +4,8 @@
 //! faces are duplicated per group of cubes still joined around them (`DofRemap::Gather`, so
 //! every material point keeps its motion). Pieces are the cubes joined through faces that are
 //! not cut. The render surface of a body of whole cubes (a box) is the boundary of each piece's
-//! cubes, outer and cut faces alike; a body embedding a surface mesh needs the paper's closing
-//! surfaces (§3.1), which are not built, so such a body refuses to cut
-//! ([`VoxelMesh::refuse_cuts`]).
+//! cubes, outer and cut faces alike; a body carrying a surface mesh renders it separated along
+//! triangle edges and capped (`surface.rs`).
 
 use crate::mesh::{CubeFace, VoxelMesh};
 use cleave_core::{
@@ -136,20 +135,21 @@ impl VoxelMesh {
 
 impl Cuttable for VoxelMesh {
     fn cut(&mut self, surface: &CutSurface) -> Result<TopologyChange, TopologyError> {
-        if let Some(reason) = self.refused_cuts() {
-            return Err(TopologyError::Invalid(reason.to_string()));
-        }
         let faces = self.crossed_faces(surface);
         let (mesh, change) = self.separate_faces(&faces).map_err(|e| TopologyError::Invalid(e.to_string()))?;
         *self = mesh;
         Ok(change)
     }
 
-    /// The boundary of each piece's cubes: every cube face without a neighbour or on a cut, two
-    /// triangles over the cube's own nodes (so the two sides of a cut face are two pieces'
+    /// The surface the cubes carry, separated and capped (`surface.rs`), or for a body of whole
+    /// cubes the boundary of each piece's cubes: every cube face without a neighbour or on a cut,
+    /// two triangles over the cube's own nodes (so the two sides of a cut face are two pieces'
     /// surfaces), outward.
     fn surface(&self) -> Option<EmbeddedSurface> {
         let (piece_of, _) = self.piece_of_cubes();
+        if let Some(input) = self.embedded_input() {
+            return Some(self.separated_surface(input, &piece_of));
+        }
         let mut surface = EmbeddedSurface::default();
         let mut vertex_of = std::collections::HashMap::new();
         let rest = self.rest_dofs();

@@ -14,5 +14,6 @@
 mod cut;
 pub mod mesh;
 pub mod stiffness;
+pub mod surface;
 
 pub use mesh::{CubeFace, VoxelError, VoxelMesh};

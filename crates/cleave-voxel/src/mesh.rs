@@ -84,8 +84,8 @@ pub struct VoxelMesh {
     coarsening: i32,
     /// Faces across which cubes do not share nodes (sorted).
     cut_faces: Vec<CubeFace>,
-    /// Why `Cuttable::cut` refuses, if it does ([`VoxelMesh::refuse_cuts`]).
-    refused: Option<String>,
+    /// The surface mesh the cubes carry, if any ([`VoxelMesh::carry_surface`]).
+    input: Option<std::sync::Arc<crate::surface::EmbeddedInput>>,
 }
 
 impl VoxelMesh {
@@ -243,7 +243,7 @@ impl VoxelMesh {
             epoch: 0,
             coarsening: DEFAULT_COARSENING,
             cut_faces,
-            refused: None,
+            input: None,
         })
     }
 
@@ -252,16 +252,29 @@ impl VoxelMesh {
         &self.cut_faces
     }
 
-    /// Makes `Cuttable::cut` refuse with `reason`: for a body whose render surface is not its
-    /// cubes' boundary (a surface mesh embedded in the cubes), whose pieces need the closing
-    /// surfaces of mueller2004 §3.1 to stay closed.
-    pub fn refuse_cuts(&mut self, reason: impl Into<String>) {
-        self.refused = Some(reason.into());
+    /// Makes the cubes carry the closed surface `surface` (rest space, inside the cubes): its
+    /// triangles split so no edge exceeds the cube edge, each assigned to the cube under its
+    /// centroid. Cuts then separate it along triangle edges and cap what opens
+    /// (`Cuttable::surface`, docs/math/voxel-cutting.md §4).
+    pub fn carry_surface(&mut self, surface: &cleave_geometry::TriangleMesh) -> Result<usize, String> {
+        let h = self.h;
+        let input = crate::surface::EmbeddedInput::new(surface, h, |p| {
+            let local = (p - self.origin) / h;
+            let base = [local.x.floor() as i32, local.y.floor() as i32, local.z.floor() as i32];
+            (0..27).find_map(|k: i32| {
+                let cell = [base[0] + k % 3 - 1, base[1] + (k / 3) % 3 - 1, base[2] + k / 9 - 1];
+                let inside = (0..3).all(|a| (-1e-9..=1.0 + 1e-9).contains(&(local[a] - cell[a] as Real)));
+                (inside && self.cube_at(cell).is_some()).then_some(cell)
+            })
+        })?;
+        let triangles = input.num_triangles();
+        self.input = Some(std::sync::Arc::new(input));
+        Ok(triangles)
     }
 
-    /// Why cuts are refused, if they are.
-    pub fn refused_cuts(&self) -> Option<&str> {
-        self.refused.as_deref()
+    /// The surface the cubes carry, if any.
+    pub(crate) fn embedded_input(&self) -> Option<&crate::surface::EmbeddedInput> {
+        self.input.as_deref()
     }
 
     /// This mesh with the cubes also separated across `faces` (added to [`VoxelMesh::cut_faces`]),
@@ -273,7 +286,7 @@ impl VoxelMesh {
         let all: Vec<CubeFace> = self.cut_faces.iter().chain(faces).copied().collect();
         let mut mesh = Self::with_cut_faces(self.material, self.origin, self.h, &self.cells, &all)?;
         mesh.coarsening = self.coarsening;
-        mesh.refused.clone_from(&self.refused);
+        mesh.input.clone_from(&self.input);
         let source: Vec<u32> = {
             let mut source = vec![u32::MAX; mesh.num_nodes()];
             for (new, old) in mesh.cube_nodes().iter().zip(self.cube_nodes()) {
@@ -561,10 +574,8 @@ impl Discretization for VoxelMesh {
         Some(self.coarse_space_with_ratio(self.coarsening))
     }
 
-    /// `None` once cuts are refused ([`VoxelMesh::refuse_cuts`]): such a body renders the
-    /// surface it embeds, not its cubes.
     fn as_cuttable(&mut self) -> Option<&mut dyn cleave_core::Cuttable> {
-        if self.refused.is_some() { None } else { Some(self) }
+        Some(self)
     }
 
     fn copy_for_cutting(&self) -> Option<Box<dyn Discretization>> {

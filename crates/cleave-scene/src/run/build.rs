@@ -104,16 +104,6 @@ impl Simulation {
             },
             BackendError::Build(message) => build_error(message),
         })?;
-        if let (Some(reason), Some(event)) = (&built.cut_refusal, scene.timeline.first()) {
-            return Err(build_error(format!(
-                "timeline[0] ({} at t = {} s) cuts, but this {name} body cannot be cut: {reason}",
-                match event {
-                    EventSpec::Cut { .. } => "Cut",
-                    EventSpec::Blade { .. } => "Blade",
-                },
-                event.start()
-            )));
-        }
         constraints.pinned_dofs = built.pins.pinned_dofs;
         constraints.extra_load = built.pins.extra_load;
         let mut discretization = built.discretization;

@@ -1,0 +1,115 @@
+//! The surface a voxel body carries, separated along triangle edges where its cubes come apart
+//! and capped (mueller2004 §3.1; docs/math/voxel-cutting.md §4): every piece's surface is closed
+//! (each directed edge matched by its reverse) after planes, blades and random soups on the
+//! bunny and a torus; an uncut body renders the input unchanged (the same triangles, each vertex
+//! where it was); no triangle is cut (every separated triangle is an input triangle).
+
+use cleave_core::{CutSurface, Cuttable, Discretization, EmbeddedSurface, Material, Point3, Real, Vector3};
+use cleave_geometry::TriangleMesh;
+use cleave_voxel::VoxelMesh;
+use std::collections::HashMap;
+
+fn load(name: &str, scale: Real, turn_x: bool) -> TriangleMesh {
+    let path = format!("{}/../../scenes/meshes/{name}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(path).unwrap();
+    let mesh = TriangleMesh::from_obj_str(&text).unwrap();
+    mesh.transformed(|p| {
+        let p = p * scale;
+        if turn_x { Point3::new(p.x, -p.z, p.y) } else { p }
+    })
+}
+
+fn voxel_body(surface: &TriangleMesh, h: Real) -> VoxelMesh {
+    let material = Material::new(5e5, 0.3, 1000.0).unwrap();
+    let grid = cleave_geometry::voxelize(surface, h).unwrap();
+    let mut mesh = VoxelMesh::new(material, grid.origin, grid.cell_size, &grid.cells).unwrap();
+    mesh.carry_surface(surface).unwrap();
+    mesh
+}
+
+/// Edges of each piece not in exactly two triangles, or not run once each way by them.
+fn open_edges(surface: &EmbeddedSurface) -> usize {
+    let mut count: HashMap<(u32, u32, u32), (i64, usize)> = HashMap::new();
+    for (t, piece) in surface.triangles.iter().zip(&surface.piece) {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            let entry = count.entry((*piece, a.min(b), a.max(b))).or_default();
+            entry.0 += if a < b { 1 } else { -1 };
+            entry.1 += 1;
+        }
+    }
+    count.values().filter(|&&(sum, uses)| sum != 0 || uses != 2).count()
+}
+
+fn check_closed(mesh: &mut VoxelMesh, label: &str) -> EmbeddedSurface {
+    let surface = mesh.surface().unwrap();
+    let open = open_edges(&surface);
+    let caps = surface.on_cut.iter().filter(|&&c| c).count();
+    println!(
+        "{label}: {} pieces, {} triangles ({caps} capping), {open} open edges",
+        mesh.pieces().len(),
+        surface.triangles.len()
+    );
+    assert_eq!(open, 0, "{label}");
+    surface
+}
+
+#[test]
+fn an_uncut_body_renders_its_surface_unchanged() {
+    let bunny = load("bunny.obj", 0.02, true);
+    let mut mesh = voxel_body(&bunny, 0.01);
+    let surface = check_closed(&mut mesh, "uncut bunny");
+    assert!(surface.on_cut.iter().all(|&c| !c));
+    // At rest every vertex is where it was (its row reproduces its rest position).
+    let rest = mesh.rest_dofs();
+    for (i, p) in surface.rest_vertices.iter().enumerate() {
+        let (nodes, weights) = surface.embedding.row(i);
+        let x: Vector3<Real> = nodes
+            .iter()
+            .zip(weights)
+            .map(|(&n, &w)| Vector3::new(rest[3 * n as usize], rest[3 * n as usize + 1], rest[3 * n as usize + 2]) * w)
+            .sum();
+        assert!((x - p.coords).norm() < 1e-12, "vertex {i}");
+    }
+}
+
+#[test]
+fn every_piece_stays_closed_after_planes_blades_and_random_soups() {
+    let mut random = cleave_testkit::Lcg::new(11);
+    for (name, scale, turn, h) in [("bunny.obj", 0.02, true, 0.01), ("torus.obj", 1.0, false, 0.04)] {
+        let input = load(name, scale, turn);
+        let (lo, hi) = input.aabb();
+        let centre = Point3::from((lo.coords + hi.coords) / 2.0);
+        let size = (hi - lo).norm();
+        let mut mesh = voxel_body(&input, h);
+        // The bunny_slice planes, scaled to the body.
+        mesh.cut(&CutSurface::Plane { point: centre + Vector3::new(0.0, 0.0, 0.2 * size), normal: Vector3::z() })
+            .unwrap();
+        check_closed(&mut mesh, &format!("{name}: horizontal plane"));
+        // A blade coming down in steps (strips), part way: a crack ending inside.
+        let x = centre.x + 0.1 * size;
+        for step in 0..6 {
+            let (top, bottom) = (hi.z - 0.1 * size * step as Real, hi.z - 0.1 * size * (step + 1) as Real);
+            let (y0, y1) = (lo.y - 0.1, hi.y + 0.1);
+            let strip = vec![
+                [Point3::new(x, y0, top), Point3::new(x, y1, top), Point3::new(x, y1, bottom)],
+                [Point3::new(x, y0, top), Point3::new(x, y1, bottom), Point3::new(x, y0, bottom)],
+            ];
+            mesh.cut(&CutSurface::Triangles(strip)).unwrap();
+            check_closed(&mut mesh, &format!("{name}: blade step {step}"));
+        }
+        // Random soups across the body.
+        for k in 0..6 {
+            let soup: Vec<[Point3<Real>; 3]> = (0..4)
+                .map(|_| {
+                    let mut p = || centre + Vector3::new(random.next(), random.next(), random.next()) * 0.6 * size;
+                    [p(), p(), p()]
+                })
+                .collect();
+            mesh.cut(&CutSurface::Triangles(soup)).unwrap();
+            check_closed(&mut mesh, &format!("{name}: soup {k}"));
+        }
+        mesh.cut(&CutSurface::Plane { point: centre, normal: Vector3::new(0.3, 1.0, 0.2) }).unwrap();
+        check_closed(&mut mesh, &format!("{name}: oblique plane"));
+    }
+}
