@@ -58,7 +58,7 @@ def main() -> int:
                     surfaces.append((message.log_time, data))
             elif channel.topic == "/stats":
                 stats.append(data)
-            elif channel.topic == "/events" and data["kind"] == "cut":
+            elif channel.topic == "/events" and data["kind"] in ("cut", "fracture"):
                 cuts += 1
                 cut_times.append(data["time"])
     print(f"{path}: {counts}")

@@ -23,6 +23,10 @@ pub struct Material {
     /// Stiffness-proportional Rayleigh damping `β` in s; finite and ≥ 0.
     #[serde(default)]
     pub rayleigh_beta: Real,
+    /// Tensile strength in Pa: the largest principal stress the material bears before it
+    /// fractures (backends that fracture, `Fracturable`); `None` is unbreakable. Finite and > 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tensile_strength: Option<Real>,
 }
 
 /// Why a material was rejected; every variant carries the offending value.
@@ -40,6 +44,9 @@ pub enum MaterialError {
     /// `ρ ≤ 0` or not finite.
     #[error("density must be finite and > 0 kg/m^3, got {0}")]
     Density(Real),
+    /// A tensile strength that is not finite and positive.
+    #[error("tensile strength must be finite and > 0 Pa, got {0}")]
+    TensileStrength(Real),
     /// A negative or non-finite damping coefficient.
     #[error("Rayleigh damping coefficients must be finite and >= 0, got alpha = {alpha}, beta = {beta}")]
     Damping {
@@ -53,7 +60,14 @@ pub enum MaterialError {
 impl Material {
     /// A validated undamped material.
     pub fn new(youngs_modulus: Real, poisson_ratio: Real, density: Real) -> Result<Self, MaterialError> {
-        let material = Self { youngs_modulus, poisson_ratio, density, rayleigh_alpha: 0.0, rayleigh_beta: 0.0 };
+        let material = Self {
+            youngs_modulus,
+            poisson_ratio,
+            density,
+            rayleigh_alpha: 0.0,
+            rayleigh_beta: 0.0,
+            tensile_strength: None,
+        };
         material.validate()?;
         Ok(material)
     }
@@ -62,6 +76,13 @@ impl Material {
     pub fn with_damping(mut self, alpha: Real, beta: Real) -> Result<Self, MaterialError> {
         self.rayleigh_alpha = alpha;
         self.rayleigh_beta = beta;
+        self.validate()?;
+        Ok(self)
+    }
+
+    /// The same material breaking at the tensile strength `strength` [Pa].
+    pub fn with_tensile_strength(mut self, strength: Real) -> Result<Self, MaterialError> {
+        self.tensile_strength = Some(strength);
         self.validate()?;
         Ok(self)
     }
@@ -83,6 +104,11 @@ impl Material {
         let (alpha, beta) = (self.rayleigh_alpha, self.rayleigh_beta);
         if !(alpha.is_finite() && alpha >= 0.0 && beta.is_finite() && beta >= 0.0) {
             return Err(MaterialError::Damping { alpha, beta });
+        }
+        if let Some(strength) = self.tensile_strength
+            && !(strength.is_finite() && strength > 0.0)
+        {
+            return Err(MaterialError::TensileStrength(strength));
         }
         Ok(())
     }
@@ -114,6 +140,9 @@ mod tests {
         assert!(Material::new(1.0, Real::NAN, 1.0).is_err());
         let m = Material::new(1.0, 0.3, 1.0).unwrap();
         assert!(matches!(m.with_damping(-1.0, 0.0), Err(MaterialError::Damping { .. })));
+        assert_eq!(m.with_tensile_strength(-2.0), Err(MaterialError::TensileStrength(-2.0)));
+        assert!(m.with_tensile_strength(Real::INFINITY).is_err());
+        assert_eq!(m.with_tensile_strength(3e4).unwrap().tensile_strength, Some(3e4));
         let message = Material::new(1.0, 0.5, 1.0).unwrap_err().to_string();
         assert!(message.contains("0.5"), "{message}");
     }

@@ -56,9 +56,12 @@ pub struct Scene {
     /// Material points whose positions are logged every step.
     #[serde(default)]
     pub probes: Vec<ProbeSpec>,
-    /// Timed events (cuts, fracture, refinement).
+    /// Timed events (cuts and blades).
     #[serde(default)]
     pub timeline: Vec<EventSpec>,
+    /// Stress fracture: when it is checked (needs the material's `tensile_strength`).
+    #[serde(default)]
+    pub fracture: Option<FractureSpec>,
     /// Where and how often to record.
     #[serde(default)]
     pub output: OutputSpec,
@@ -218,6 +221,15 @@ impl Default for SolverSpec {
             preconditioner: PreconditionerSpec::Auto,
         }
     }
+}
+
+/// When stress fracture is checked (the material's `tensile_strength` is the threshold).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FractureSpec {
+    /// Check after every this many steps (1: every step).
+    #[serde(default = "one_u32")]
+    pub every: u32,
 }
 
 /// Pinned material.

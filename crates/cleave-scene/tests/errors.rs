@@ -185,3 +185,26 @@ fn a_mesh_the_backend_cannot_discretize_names_the_mesh_file() {
     assert!(matches!(error, SceneError::Mesh { .. }), "{message}");
     assert!(message.contains("cube.obj"), "{message}");
 }
+
+#[test]
+fn fracture_needs_a_strength_and_a_backend_that_fractures() {
+    let with_fracture = GOOD.replace("    steps: 3,\n", "    steps: 3,\n    fracture: (every: 1),\n");
+    let loaded = parse_scene(Path::new("test.ron"), &with_fracture).unwrap();
+    let message = Simulation::build(&loaded, None).err().expect("no strength").to_string();
+    assert!(message.contains("tensile_strength"), "{message}");
+    let strong = with_fracture.replace("density: 1000.0)", "density: 1000.0, tensile_strength: 5e4)");
+    let loaded = parse_scene(Path::new("test.ron"), &strong).unwrap();
+    let mut simulation = Simulation::build(&loaded, None).unwrap();
+    simulation.step().unwrap();
+    let dg = strong
+        .replace(r#"backend: "voxel","#, r#"backend: "dg","#)
+        .replace(r#""voxel": (cell_size: 0.25)"#, r#""dg": (cell_size: 0.25)"#);
+    let loaded = parse_scene(Path::new("test.ron"), &dg).unwrap();
+    let message = Simulation::build(&loaded, None).err().expect("dg cannot fracture").to_string();
+    assert!(message.contains("cannot fracture"), "{message}");
+    // A strength that is not positive is refused while parsing, with its position.
+    let weak = with_fracture.replace("density: 1000.0)", "density: 1000.0, tensile_strength: -1.0)");
+    let (line, _, message) = parse_error(&weak);
+    assert_eq!(line, 5, "{message}");
+    assert!(message.contains("tensile strength"), "{message}");
+}

@@ -9,7 +9,8 @@
 
 use crate::mesh::{CubeFace, VoxelMesh};
 use cleave_core::{
-    CutSurface, Cuttable, Discretization, EmbeddedSurface, Piece, Point3, Real, TopologyChange, TopologyError, Vector3,
+    CutSurface, Cuttable, Discretization, EmbeddedSurface, Fracturable, Matrix3, Piece, Point3, Real, TopologyChange,
+    TopologyError, Vector3,
 };
 use cleave_geometry::UnionFind;
 use cleave_geometry::predicates::side3;
@@ -130,6 +131,208 @@ impl VoxelMesh {
             })
             .collect();
         (piece_of, pieces as usize)
+    }
+}
+
+/// Cubes from the fracturing cube, per axis, that the fracture plane separates (mueller2004
+/// §2.3's "local neighborhood"): a 5 × 5 × 5 block, so a crack is at least two cubes long each
+/// way and further cracks grow from its ends as the stress concentrates there.
+pub const FRACTURE_REACH: i32 = 2;
+
+impl VoxelMesh {
+    /// The corotated small-strain stress of `cube` at positions `x` with its frame `rotation`, in
+    /// the frame's axes: `σ = λ tr(ε) I + 2μ ε`, `ε = sym(Rᵀ F) − I`, with `F` the deformation
+    /// gradient at the cube's centre (docs/math/voxel-cutting.md §5).
+    pub fn cube_stress(&self, cube: usize, x: &[Real], rotation: &Matrix3<Real>) -> Matrix3<Real> {
+        let f = rotation.transpose() * self.center_gradient(cube, x);
+        let strain = (f + f.transpose()) * 0.5 - Matrix3::identity();
+        let (lambda, mu) = self.material().lame();
+        Matrix3::identity() * (lambda * strain.trace()) + strain * (2.0 * mu)
+    }
+
+    /// The largest principal stress of `cube` ([`VoxelMesh::cube_stress`]) and its direction in
+    /// the world.
+    pub fn principal_stress(&self, cube: usize, x: &[Real], rotation: &Matrix3<Real>) -> (Real, Vector3<Real>) {
+        let eigen = self.cube_stress(cube, x, rotation).symmetric_eigen();
+        let k = eigen.eigenvalues.imax();
+        (eigen.eigenvalues[k], rotation * eigen.eigenvectors.column(k).into_owned())
+    }
+
+    /// The stress the fracture criterion reads: each cube's stress (in its frame, which is the
+    /// rest-space orientation) averaged with the cubes around it that still share a node with
+    /// it (its 3 × 3 × 3 block, a crack's other side left out). One cube's stress jumps where a
+    /// contact point pushes on it; the average is the stress of the material around it, so a
+    /// single cube is not torn off by a point load (docs/math/voxel-cutting.md §5).
+    pub fn smoothed_stresses(&self, x: &[Real], rotations: &[Matrix3<Real>]) -> Vec<Matrix3<Real>> {
+        let stresses: Vec<Matrix3<Real>> =
+            (0..self.num_cubes()).map(|c| self.cube_stress(c, x, &rotations[c])).collect();
+        (0..self.num_cubes())
+            .map(|cube| {
+                let cell = self.cells()[cube];
+                let nodes = &self.cube_nodes()[cube];
+                let (mut sum, mut count) = (Matrix3::zeros(), 0.0);
+                for k in 0..27 {
+                    let other = [cell[0] + k % 3 - 1, cell[1] + (k / 3) % 3 - 1, cell[2] + k / 9 - 1];
+                    if let Some(o) = self.cube_at(other)
+                        && self.cube_nodes()[o].iter().any(|n| nodes.contains(n))
+                    {
+                        sum += stresses[o];
+                        count += 1.0;
+                    }
+                }
+                sum / count
+            })
+            .collect()
+    }
+
+    /// The faces mueller2004 §2.3 separates for `cube`: the cubes within [`FRACTURE_REACH`] of
+    /// it labelled by the side of the plane through its centre across `direction` (a rest-space
+    /// direction), every face between two labels that is not cut yet.
+    pub fn fracture_faces(&self, cube: usize, direction: &Vector3<Real>) -> Vec<CubeFace> {
+        let centre = self.centre(self.cells()[cube]);
+        let side = |cell: [i32; 3]| direction.dot(&(self.centre(cell) - centre)) >= 0.0;
+        let c = self.cells()[cube];
+        let mut faces = Vec::new();
+        for dz in -FRACTURE_REACH..=FRACTURE_REACH {
+            for dy in -FRACTURE_REACH..=FRACTURE_REACH {
+                for dx in -FRACTURE_REACH..FRACTURE_REACH + 1 {
+                    let cell = [c[0] + dx, c[1] + dy, c[2] + dz];
+                    if self.cube_at(cell).is_none() {
+                        continue;
+                    }
+                    for axis in 0..3 {
+                        let mut next = cell;
+                        next[axis] += 1;
+                        let inside = (next[axis] - c[axis]).abs() <= FRACTURE_REACH;
+                        let face = CubeFace { cell, axis };
+                        if inside
+                            && self.cube_at(next).is_some()
+                            && side(cell) != side(next)
+                            && self.cut_faces().binary_search(&face).is_err()
+                        {
+                            faces.push(face);
+                        }
+                    }
+                }
+            }
+        }
+        faces
+    }
+}
+
+impl Fracturable for VoxelMesh {
+    /// Every cube whose largest principal stress (smoothed over the cubes around it,
+    /// [`VoxelMesh::smoothed_stresses`]) exceeds `threshold` fractures by mueller2004 §2.3's rule ([`VoxelMesh::fracture_faces`]), the most stressed first; a cube inside the
+    /// neighbourhood of one that already fractured in this call waits for the next (its stress
+    /// changes once the crack opens). `None` if nothing broke.
+    fn fracture(
+        &mut self,
+        x: &[Real],
+        rotations: &[Matrix3<Real>],
+        threshold: Real,
+    ) -> Result<Option<TopologyChange>, TopologyError> {
+        if x.len() != 3 * self.num_nodes() || rotations.len() != self.num_cubes() {
+            return Err(TopologyError::Invalid(format!(
+                "fracture needs {} positions and {} rotations, got {} and {}",
+                3 * self.num_nodes(),
+                self.num_cubes(),
+                x.len(),
+                rotations.len()
+            )));
+        }
+        // Stresses in each cube's frame: their directions are rest-space directions, where the
+        // faces are labelled.
+        let mut stressed: Vec<(Real, usize, Vector3<Real>)> = self
+            .smoothed_stresses(x, rotations)
+            .into_iter()
+            .enumerate()
+            .filter_map(|(cube, stress)| {
+                let eigen = stress.symmetric_eigen();
+                let k = eigen.eigenvalues.imax();
+                (eigen.eigenvalues[k] > threshold)
+                    .then(|| (eigen.eigenvalues[k], cube, eigen.eigenvectors.column(k).into_owned()))
+            })
+            .collect();
+        if stressed.is_empty() {
+            return Ok(None);
+        }
+        stressed.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        let mut faces = Vec::new();
+        let mut fractured: Vec<[i32; 3]> = Vec::new();
+        for (_, cube, direction) in stressed {
+            let cell = self.cells()[cube];
+            if fractured.iter().any(|f| (0..3).all(|a| (f[a] - cell[a]).abs() <= FRACTURE_REACH)) {
+                continue;
+            }
+            fractured.push(cell);
+            faces.extend(self.fracture_faces(cube, &direction));
+        }
+        faces.sort_unstable();
+        faces.dedup();
+        let faces = self.without_crumbs(faces);
+        if faces.is_empty() {
+            return Ok(None);
+        }
+        let (mesh, change) = self.separate_faces(&faces).map_err(|e| TopologyError::Invalid(e.to_string()))?;
+        *self = mesh;
+        Ok(Some(change))
+    }
+}
+
+/// The fewest cubes a fracture may break off as a fragment: a plane's staircase through a thin
+/// part of the body isolates single surface cubes, which the paper's rule would shed as crumbs
+/// (docs/math/voxel-cutting.md §5).
+pub const MIN_FRAGMENT_CUBES: usize = 8;
+
+impl VoxelMesh {
+    /// `faces` less those whose separation would leave a piece of fewer than
+    /// [`MIN_FRAGMENT_CUBES`] cubes that was not that small before: the new faces touching such
+    /// a piece are kept joined, until no such piece is left.
+    fn without_crumbs(&self, mut faces: Vec<CubeFace>) -> Vec<CubeFace> {
+        let (before, _) = self.piece_of_cubes();
+        let mut size_before = vec![0usize; self.num_cubes()];
+        for &p in &before {
+            size_before[p as usize] += 1;
+        }
+        loop {
+            let mut joined = UnionFind::new(self.num_cubes());
+            for (cube, &cell) in self.cells().iter().enumerate() {
+                for axis in 0..3 {
+                    let mut next = cell;
+                    next[axis] += 1;
+                    let face = CubeFace { cell, axis };
+                    if let Some(other) = self.cube_at(next)
+                        && self.cut_faces().binary_search(&face).is_err()
+                        && faces.binary_search(&face).is_err()
+                    {
+                        joined.union(cube, other);
+                    }
+                }
+            }
+            let root: Vec<usize> = (0..self.num_cubes()).map(|cube| joined.find(cube)).collect();
+            let mut size = vec![0usize; self.num_cubes()];
+            for &r in &root {
+                size[r] += 1;
+            }
+            let crumb = |cube: usize| {
+                let n = size[root[cube]];
+                n < MIN_FRAGMENT_CUBES && n < size_before[before[cube] as usize]
+            };
+            let kept: Vec<CubeFace> = faces
+                .iter()
+                .copied()
+                .filter(|f| {
+                    let mut next = f.cell;
+                    next[f.axis] += 1;
+                    let (a, b) = (self.cube_at(f.cell), self.cube_at(next));
+                    !(a.is_some_and(crumb) || b.is_some_and(crumb))
+                })
+                .collect();
+            if kept.len() == faces.len() {
+                return faces;
+            }
+            faces = kept;
+        }
     }
 }
 

@@ -578,6 +578,10 @@ impl Discretization for VoxelMesh {
         Some(self)
     }
 
+    fn as_fracturable(&mut self) -> Option<&mut dyn cleave_core::Fracturable> {
+        Some(self)
+    }
+
     fn copy_for_cutting(&self) -> Option<Box<dyn Discretization>> {
         Some(Box::new(self.clone()))
     }

@@ -74,8 +74,21 @@ impl Simulation {
                 given.join(", ")
             ))
         })?;
-        // Capabilities the timeline needs, before anything is built.
+        // Capabilities the timeline and fracture need, before anything is built.
         let capabilities = registration.capabilities();
+        if let Some(fracture) = &scene.fracture {
+            if !capabilities.fracture {
+                return Err(build_error(format!("`fracture` is set, but the {name} backend cannot fracture")));
+            }
+            if material.tensile_strength.is_none() {
+                return Err(build_error(
+                    "`fracture` is set, but the material has no `tensile_strength` (the stress it breaks at)".into(),
+                ));
+            }
+            if fracture.every == 0 {
+                return Err(build_error("`fracture.every` must be at least 1 step".into()));
+            }
+        }
         for (index, event) in scene.timeline.iter().enumerate() {
             let kind = match event {
                 EventSpec::Cut { .. } => "Cut",
@@ -269,6 +282,7 @@ impl Simulation {
             path,
             steps: scene.steps,
             surface_every: u64::from(scene.output.surface_every.max(1)),
+            fracture: scene.fracture.as_ref().zip(material.tensile_strength).map(|(f, s)| (u64::from(f.every), s)),
             discretization: Arc::from(discretization),
             integrator,
             surface_triangles,

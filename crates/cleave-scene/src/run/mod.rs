@@ -14,7 +14,7 @@ use timeline::{TimedCut, prepare_timeline};
 use crate::record::{RecordError, Recorder};
 use crate::schema::Scene;
 use cleave_core::{CutSurface, Discretization, Embedding, Piece, Point3, Real, Vector3};
-use cleave_integrator::{Constraints, Integrator, StepError, StepReport};
+use cleave_integrator::{Constraints, ContactSet, Integrator, StepError, StepReport};
 use cleave_registry::{Backend, Region};
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -158,6 +158,23 @@ pub struct Simulation {
     retired: Option<Arc<dyn Discretization>>,
     /// See [`Simulation::set_cut_ahead`].
     cut_ahead: bool,
+    /// Stress fracture: checked after every this many steps, at this tensile strength [Pa].
+    fracture: Option<(u64, Real)>,
+}
+
+/// A topology change just made, with what the rest of the simulation needs to follow it.
+struct ChangeMade {
+    change: cleave_core::TopologyChange,
+    surface: Option<cleave_core::EmbeddedSurface>,
+    pieces: Vec<Piece>,
+    /// Seconds the change took ahead on a copy, if it was made there.
+    ahead: Option<Real>,
+    prepared_contact: Option<ContactSet>,
+    clock: Instant,
+    /// Nodes, frames and pieces before.
+    before: (usize, usize, usize),
+    /// The event's kind in the recording.
+    kind: &'static str,
 }
 
 /// What cutting did over a run (for the summary table and the recording).
@@ -344,6 +361,52 @@ impl Simulation {
                 made
             }
         };
+        self.finish_change(ChangeMade { change, surface, pieces, ahead, prepared_contact, clock, before, kind: "cut" })
+    }
+
+    /// Breaks the body where its stress exceeds the material's strength (`Fracturable`), and
+    /// carries everything across as a cut does; recorded as a `fracture` event.
+    fn apply_fracture(&mut self, strength: Real) -> Result<(), SceneError> {
+        let clock = Instant::now();
+        let path = self.path.clone();
+        let build_error = |message: String| SceneError::Build { path: path.clone(), message };
+        let before = (self.discretization.num_nodes(), self.discretization.num_frames(), self.cuts.pieces.len());
+        let (x, rotations) = (self.integrator.positions().to_vec(), self.integrator.rotations().to_vec());
+        let (backend, time) = (self.info.backend.clone(), self.integrator.time());
+        let body = self.body_mut()?;
+        let fracturable =
+            body.as_fracturable().ok_or_else(|| build_error(format!("the {backend} backend cannot fracture")))?;
+        let Some(change) = fracturable
+            .fracture(&x, &rotations, strength)
+            .map_err(|e| build_error(format!("fracture at t = {time} s: {e}")))?
+        else {
+            return Ok(());
+        };
+        let cuttable = body
+            .as_cuttable()
+            .ok_or_else(|| build_error(format!("the {backend} backend fractures but renders no pieces")))?;
+        let (surface, pieces) = (cuttable.surface(), cuttable.pieces());
+        self.prepared = None;
+        let ahead = None;
+        let prepared_contact = None;
+        self.finish_change(ChangeMade {
+            change,
+            surface,
+            pieces,
+            ahead,
+            prepared_contact,
+            clock,
+            before,
+            kind: "fracture",
+        })
+    }
+
+    /// After the body changed: the integrator carries the state across, pins, contact rows,
+    /// probes and the render surface are resolved again, and the change is recorded.
+    fn finish_change(&mut self, made: ChangeMade) -> Result<(), SceneError> {
+        let ChangeMade { change, surface, pieces, ahead, prepared_contact, clock, before, kind } = made;
+        let path = self.path.clone();
+        let build_error = |message: String| SceneError::Build { path: path.clone(), message };
         let surface = surface.ok_or_else(|| build_error("a cut body must render its own surface".into()))?;
         let d = self.discretization.as_ref();
         let pins = self.registration.resolve_pins(d, &self.pins).map_err(|e| build_error(e.to_string()))?;
@@ -394,7 +457,7 @@ impl Simulation {
                 Some(ahead) => format!("{message} (cut and surface made ahead on a copy: {:.2} ms)", 1e3 * ahead),
                 None => message,
             };
-            recorder.event(time, "cut", &message)?;
+            recorder.event(time, kind, &message)?;
         }
         Ok(())
     }
@@ -414,6 +477,11 @@ impl Simulation {
             self.record_surface()?;
         }
         self.record_stats(&report)?;
+        if let Some((every, strength)) = self.fracture
+            && self.integrator.steps_taken().is_multiple_of(every)
+        {
+            self.apply_fracture(strength)?;
+        }
         self.prepare_next_cut();
         Ok(report)
     }
