@@ -34,6 +34,10 @@ pub struct Scene {
     /// Linear solver; default CG.
     #[serde(default)]
     pub solver: SolverSpec,
+    /// The linear solver of a backend that runs this scene, in place of `solver` (a voxel body
+    /// of thousands of cubes solves faster by CG than a factorization a tetrahedral one likes).
+    #[serde(default)]
+    pub solver_for: BTreeMap<String, SolverSpec>,
     /// Remove the angular momentum the step's own elastic forces and contact couples add to a
     /// free piece (`Settings::conserve_angular_momentum`); default false.
     #[serde(default)]

@@ -208,3 +208,15 @@ fn fracture_needs_a_strength_and_a_backend_that_fractures() {
     assert_eq!(line, 5, "{message}");
     assert!(message.contains("tensile strength"), "{message}");
 }
+
+#[test]
+fn a_solver_for_a_backend_without_settings_is_a_build_error() {
+    let text = GOOD.replace("    steps: 3,\n", "    steps: 3,\n    solver_for: { \"dg\": Cholesky },\n");
+    let loaded = parse_scene(Path::new("test.ron"), &text).unwrap();
+    let message = Simulation::build(&loaded, None).err().expect("dg has no settings").to_string();
+    assert!(message.contains("solver_for") && message.contains("\"dg\""), "{message}");
+    // With the backend's own entry it builds and steps.
+    let text = GOOD.replace("    steps: 3,\n", "    steps: 3,\n    solver_for: { \"voxel\": Cholesky },\n");
+    let loaded = parse_scene(Path::new("test.ron"), &text).unwrap();
+    Simulation::build(&loaded, None).unwrap().step().unwrap();
+}

@@ -74,6 +74,11 @@ impl Simulation {
                 given.join(", ")
             ))
         })?;
+        if let Some(key) = scene.solver_for.keys().find(|k| !scene.settings.contains_key(*k)) {
+            return Err(build_error(format!(
+                "`solver_for` has an entry for {key:?}, but `settings` has none (a backend this scene runs on needs both)"
+            )));
+        }
         // Capabilities the timeline and fracture need, before anything is built.
         let capabilities = registration.capabilities();
         if let Some(fracture) = &scene.fracture {
@@ -255,13 +260,14 @@ impl Simulation {
         settings.rayleigh_beta = material.rayleigh_beta;
         settings.conserve_angular_momentum = scene.conserve_angular_momentum;
         settings.rotation_refresh_angle = scene.rotation_refresh_angle.map(|a| a.0);
-        settings.solver = match scene.solver {
+        let solver = scene.solver_for.get(name).unwrap_or(&scene.solver).clone();
+        settings.solver = match solver {
             SolverSpec::Cholesky => Solver::Cholesky,
             SolverSpec::ConjugateGradient { tolerance, max_iterations, assembled, .. } => {
                 Solver::ConjugateGradient { tolerance: tolerance.0, max_iterations, assembled }
             }
         };
-        if let SolverSpec::ConjugateGradient { preconditioner, .. } = scene.solver {
+        if let SolverSpec::ConjugateGradient { preconditioner, .. } = solver {
             settings.preconditioner = match preconditioner {
                 PreconditionerSpec::Auto => Preconditioner::Auto,
                 PreconditionerSpec::BlockJacobi => Preconditioner::BlockJacobi,
