@@ -3,7 +3,7 @@
 //! position or velocity (the gather carries them) and keeps mass; nothing breaks below the
 //! strength.
 
-use cleave_core::{Cuttable, Discretization, Fracturable, Material, Matrix3, Point3, Real};
+use cleave_core::{Cuttable, Discretization, Fracturable, Material, Matrix3, Point3, Real, Vector3};
 use cleave_integrator::solve_static;
 use cleave_voxel::VoxelMesh;
 
@@ -61,7 +61,22 @@ fn a_notched_bar_pulled_apart_breaks_across_its_neck_and_nowhere_else() {
     // Between the far field and the peak: the crack starts at the neck and, solved again after
     // each fracture as a run would, grows across it until the bar is in two.
     let strength = 0.5 * (far + peak);
+    // The same stretched bar turned about a skew axis and moved, with the frames the integrator
+    // would extract: the corotated stress, and so the faces it breaks, are the same.
+    let motion = nalgebra::Isometry3::new(Vector3::new(0.3, -1.2, 2.5), Vector3::new(0.4, -0.7, 0.9));
+    let moved: Vec<Real> = x
+        .chunks_exact(3)
+        .flat_map(|p| {
+            let q = motion * Point3::new(p[0], p[1], p[2]);
+            [q.x, q.y, q.z]
+        })
+        .collect();
+    let mut frames = vec![Matrix3::identity(); bar.num_cubes()];
+    bar.write_rotations(&moved, &mut frames);
+    let mut turned = notched_bar();
+    turned.fracture(&moved, &frames, strength).unwrap().expect("the turned neck breaks");
     let change = bar.fracture(&x, &rotations, strength).unwrap().expect("the neck breaks");
+    assert_eq!(turned.cut_faces(), bar.cut_faces(), "a rigid motion changes what breaks");
     // The gather carries every node's position: each new node is where its source was.
     let cleave_core::DofRemap::Gather(source) = &change.remap else { panic!("a gather") };
     let after = bar.rest_dofs();

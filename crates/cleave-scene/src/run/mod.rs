@@ -371,13 +371,15 @@ impl Simulation {
         let path = self.path.clone();
         let build_error = |message: String| SceneError::Build { path: path.clone(), message };
         let before = (self.discretization.num_nodes(), self.discretization.num_frames(), self.cuts.pieces.len());
-        let (x, rotations) = (self.integrator.positions().to_vec(), self.integrator.rotations().to_vec());
         let (backend, time) = (self.info.backend.clone(), self.integrator.time());
-        let body = self.body_mut()?;
+        // The body alone (a preparation holding it is waited for), borrowed beside the
+        // integrator's state: no copy of the positions in a step that checks.
+        self.body_mut()?;
+        let body = Arc::get_mut(&mut self.discretization).expect("body_mut made the body unshared");
         let fracturable =
             body.as_fracturable().ok_or_else(|| build_error(format!("the {backend} backend cannot fracture")))?;
         let Some(change) = fracturable
-            .fracture(&x, &rotations, strength)
+            .fracture(self.integrator.positions(), self.integrator.rotations(), strength)
             .map_err(|e| build_error(format!("fracture at t = {time} s: {e}")))?
         else {
             return Ok(());
