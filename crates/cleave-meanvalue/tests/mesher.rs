@@ -4,14 +4,20 @@
 //! distance); every element valid and the mesh conforming (it builds); the conformance suite on
 //! the meshed solid.
 
-use cleave_core::{Discretization, Material, Real};
+use cleave_core::{Discretization, Material, Point3, Real};
 use cleave_geometry::TriangleMesh;
 use cleave_meanvalue::{MeanValueMesh, mesh_closed_surface, quality};
 use cleave_testkit::{assert_all_pass, conformance_suite};
 use std::time::Instant;
 
 fn load(name: &str, scale: Real, turn_x: bool) -> TriangleMesh {
-    cleave_testkit::scene_mesh(name, scale, turn_x)
+    let path = format!("{}/../../scenes/meshes/{name}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(path).unwrap();
+    let mesh = TriangleMesh::from_obj_str(&text).unwrap();
+    mesh.transformed(|p| {
+        let p = p * scale;
+        if turn_x { Point3::new(p.x, -p.z, p.y) } else { p }
+    })
 }
 
 fn material() -> Material {

@@ -113,18 +113,6 @@ fn force(d: &dyn Discretization, r: &[Matrix3<Real>], x: &[Real]) -> Vec<Real> {
     f
 }
 
-/// The OBJ `name` of `scenes/meshes/`, scaled by `scale` and, with `turn_x`, turned from y up
-/// to z up (as the scenes place it): the bodies other than boxes that backend tests cut.
-pub fn scene_mesh(name: &str, scale: Real, turn_x: bool) -> cleave_geometry::TriangleMesh {
-    let path = format!("{}/../../scenes/meshes/{name}", env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    let mesh = cleave_geometry::TriangleMesh::from_obj_str(&text).unwrap_or_else(|e| panic!("{path}: {e}"));
-    mesh.transformed(|p| {
-        let p = p * scale;
-        if turn_x { Point3::new(p.x, -p.z, p.y) } else { p }
-    })
-}
-
 /// Force = −∇(elastic energy) with rotations frozen, by central differences along random
 /// directions (the energy is quadratic then, so the difference quotient is exact to rounding).
 pub fn force_is_energy_gradient(d: &dyn Discretization) -> Check {

@@ -10,7 +10,13 @@ use cleave_voxel::VoxelMesh;
 use std::collections::HashMap;
 
 fn load(name: &str, scale: Real, turn_x: bool) -> TriangleMesh {
-    cleave_testkit::scene_mesh(name, scale, turn_x)
+    let path = format!("{}/../../scenes/meshes/{name}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(path).unwrap();
+    let mesh = TriangleMesh::from_obj_str(&text).unwrap();
+    mesh.transformed(|p| {
+        let p = p * scale;
+        if turn_x { Point3::new(p.x, -p.z, p.y) } else { p }
+    })
 }
 
 fn voxel_body(surface: &TriangleMesh, h: Real) -> VoxelMesh {
