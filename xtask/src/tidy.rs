@@ -20,6 +20,8 @@ const LAYERS: &[(&str, &[&str])] = &[
     ("cleave-contact", &["cleave-core", "cleave-geometry"]),
     // The integrator never knows which backend it drives.
     ("cleave-integrator", &["cleave-core", "cleave-geometry", "cleave-contact"]),
+    // Rigid fragments on rapier: the hand-off, beside the integrator, driven by the scene runner.
+    ("cleave-rigid", &["cleave-core"]),
     // Checks every backend must pass, written against the traits.
     ("cleave-testkit", &["cleave-core", "cleave-geometry", "cleave-integrator"]),
     // The one place backends are named.
@@ -37,7 +39,7 @@ const LAYERS: &[(&str, &[&str])] = &[
         ],
     ),
     // Scenes reach backends through the registry only.
-    ("cleave-scene", &["cleave-core", "cleave-geometry", "cleave-integrator", "cleave-registry"]),
+    ("cleave-scene", &["cleave-core", "cleave-geometry", "cleave-integrator", "cleave-registry", "cleave-rigid"]),
 ];
 
 const BACKEND_DEPENDENCIES: &[&str] = &["cleave-core", "cleave-geometry"];
