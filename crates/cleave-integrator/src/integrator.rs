@@ -510,6 +510,33 @@ impl Integrator {
         self.contacts_stale = self.constraints.has_contact();
     }
 
+    /// Overwrites part of the state in place (`edit` gets positions and velocities; e.g. the
+    /// nodes of a piece that moves as a rigid body elsewhere), then refreshes the rotations.
+    /// Allocates nothing.
+    pub fn edit_state(&mut self, discretization: &dyn Discretization, edit: impl FnOnce(&mut [Real], &mut [Real])) {
+        edit(&mut self.x, &mut self.v);
+        self.last_inverted = discretization.write_rotations(&self.x, &mut self.rotations).inverted;
+        self.contacts_stale = self.constraints.has_contact();
+    }
+
+    /// The DOFs held where they are (velocity zero) in a step.
+    pub fn pinned_dofs(&self) -> &[usize] {
+        &self.constraints.pinned_dofs
+    }
+
+    /// Changes which DOFs are pinned (e.g. the nodes of pieces that move as rigid bodies, which
+    /// then sit still in the step) and rebuilds what depends on them as a topology change does
+    /// (pattern, factorization, preconditioner; with surface contact left to the next step).
+    pub fn set_pinned_dofs(
+        &mut self,
+        discretization: &dyn Discretization,
+        pinned_dofs: Vec<usize>,
+    ) -> Result<(), StepError> {
+        self.constraints.pinned_dofs = pinned_dofs;
+        let defer = self.constraints.surface_contact.is_some();
+        self.rebuild(discretization, defer, None).map_err(|kind| StepError { step: self.step, kind })
+    }
+
     /// Current rotations (one per frame, valid for the current positions).
     pub fn rotations(&self) -> &[Matrix3<Real>] {
         &self.rotations
@@ -609,6 +636,18 @@ impl Integrator {
             )));
         }
         let h = self.settings.time_step;
+        // Every DOF pinned (e.g. the whole body moving as a rigid body elsewhere, which writes
+        // its motion after the step): nothing moves and nothing is solved.
+        if !self.pinned.is_empty() && self.pinned.iter().all(|&p| p) {
+            let clock = Instant::now();
+            self.v.fill(0.0);
+            self.step += 1;
+            self.time += h;
+            let mut report = self.energies(discretization);
+            report.step = self.step - 1;
+            report.seconds.rest = clock.elapsed().as_secs_f64();
+            return Ok(report);
+        }
         let (alpha, beta) = (self.settings.rayleigh_alpha, self.settings.rayleigh_beta);
         let scales = StepScales { mass: 1.0 + h * alpha, stiffness: h * beta + h * h, h };
         let mut seconds = PhaseSeconds::default();

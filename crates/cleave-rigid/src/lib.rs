@@ -149,6 +149,10 @@ pub struct Fragment {
 /// The rigid fragments and the rapier world they move in.
 pub struct RigidWorld {
     world: PhysicsWorld,
+    /// The obstacles' planes (point, unit normal) and the meshes' boxes (min, max), for the
+    /// look-ahead of [`RigidWorld::about_to_hit`].
+    planes: Vec<(Point3<Real>, Vector3<Real>)>,
+    mesh_boxes: Vec<(Point3<Real>, Point3<Real>)>,
     fragments: Vec<Fragment>,
     settings: WorldSettings,
     /// Each fragment's pose and velocities before the step (the roll-back of an impact).
@@ -181,6 +185,20 @@ impl RigidWorld {
     /// An empty world with the scene's obstacles as fixed colliders.
     pub fn new(settings: WorldSettings, obstacles: &[Obstacle]) -> Result<Self, HandOffError> {
         let mut world = PhysicsWorld::default();
+        let (mut planes, mut mesh_boxes) = (Vec::new(), Vec::new());
+        for obstacle in obstacles {
+            match obstacle {
+                Obstacle::Plane { point, normal, .. } => planes.push((*point, normal.normalize())),
+                Obstacle::Mesh { vertices, .. } => {
+                    let (mut lo, mut hi) = (Point3::from([Real::MAX; 3]), Point3::from([Real::MIN; 3]));
+                    for p in vertices {
+                        lo = lo.inf(p);
+                        hi = hi.sup(p);
+                    }
+                    mesh_boxes.push((lo, hi));
+                }
+            }
+        }
         world.gravity = to_glam(&settings.gravity);
         world.integration_parameters.dt = settings.time_step;
         for obstacle in obstacles {
@@ -200,7 +218,7 @@ impl RigidWorld {
             let collider = collider.restitution(0.0).build();
             world.colliders.insert_with_parent(collider, body, &mut world.bodies);
         }
-        Ok(Self { world, fragments: Vec::new(), settings, saved: Vec::new() })
+        Ok(Self { world, planes, mesh_boxes, fragments: Vec::new(), settings, saved: Vec::new() })
     }
 
     /// The fragments now.
@@ -314,6 +332,50 @@ impl RigidWorld {
                 return returned;
             }
         }
+    }
+
+    /// Fragments about to hit an obstacle fast: a node that, moving on at its velocity (`x`,
+    /// `v`: the nodes' motion as last written) for the next `steps` steps, comes within
+    /// `margin` of an obstacle's plane while approaching it faster than `return_speed`; for a
+    /// mesh obstacle, the fragment's box swept over those steps and widened by `margin` meets
+    /// the mesh's box at such a speed. They are to return before the impact, so that the FE
+    /// model meets the approach as it would have without the rigid world (its contact sees
+    /// only what is within its reach at the start of a step).
+    pub fn about_to_hit(&self, x: &[Real], v: &[Real], margin: Real, steps: Real) -> Vec<usize> {
+        let lookahead = steps * self.settings.time_step;
+        let fast = self.settings.return_speed;
+        let node = |values: &[Real], n: u32| {
+            let k = 3 * n as usize;
+            Vector3::new(values[k], values[k + 1], values[k + 2])
+        };
+        (0..self.fragments.len())
+            .filter(|&i| {
+                let nodes = &self.fragments[i].nodes;
+                let near_plane = self.planes.iter().any(|(point, normal)| {
+                    nodes.iter().any(|&n| {
+                        let approach = -node(v, n).dot(normal);
+                        let gap = (node(x, n) - point.coords).dot(normal);
+                        approach > fast && gap - approach * lookahead < margin
+                    })
+                });
+                let near_mesh = !self.mesh_boxes.is_empty() && {
+                    let (mut lo, mut hi, mut speed) = (Vector3::repeat(Real::MAX), Vector3::repeat(Real::MIN), 0.0);
+                    for &n in nodes {
+                        let (p, u) = (node(x, n), node(v, n));
+                        let q = p + lookahead * u;
+                        lo = lo.inf(&p.inf(&q));
+                        hi = hi.sup(&p.sup(&q));
+                        speed = Real::max(speed, u.norm());
+                    }
+                    speed > fast
+                        && self
+                            .mesh_boxes
+                            .iter()
+                            .any(|(a, b)| (0..3).all(|k| lo[k] - margin <= b[k] && a[k] - margin <= hi[k]))
+                };
+                near_plane || near_mesh
+            })
+            .collect()
     }
 
     /// The magnitude of the contact impulse fragment `index` received in the last step [N·s].

@@ -205,3 +205,19 @@ fn resting_on_the_ground_stays_rigid() {
     assert!(lowest.abs() < 2e-3, "rests on the plane: {lowest}");
     assert!(v1.iter().all(|u| u.abs() < 1e-2));
 }
+
+#[test]
+fn a_fast_approach_is_seen_two_steps_ahead_and_a_slow_one_not() {
+    let nodes: Vec<u32> = (0..8).collect();
+    let ahead = |z: Real, speed: Real| {
+        let (x, v, m) = falling_box(z, speed);
+        let mut world = RigidWorld::new(settings(Vector3::new(0.0, 0.0, -9.81)), &ground()).unwrap();
+        world.add(nodes.clone(), &m, &x, &v, &points_of(&nodes, &x)).unwrap();
+        world.about_to_hit(&x, &v, 0.005, 2.0)
+    };
+    // Two steps of 5 ms at 3 m/s cover 3 cm.
+    assert_eq!(ahead(0.02, 3.0), vec![0], "2 cm above at 3 m/s");
+    assert_eq!(ahead(0.034, 3.0), vec![0], "within the margin after two steps");
+    assert!(ahead(0.05, 3.0).is_empty(), "5 cm above: not yet");
+    assert!(ahead(0.001, 0.2).is_empty(), "slower than the return speed");
+}

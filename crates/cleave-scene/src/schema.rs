@@ -66,6 +66,9 @@ pub struct Scene {
     /// Stress fracture: when it is checked (needs the material's `tensile_strength`).
     #[serde(default)]
     pub fracture: Option<FractureSpec>,
+    /// Rigid fragments: free pieces that move as rigid bodies (rapier) until an impact.
+    #[serde(default)]
+    pub rigid_fragments: Option<RigidSpec>,
     /// Where and how often to record.
     #[serde(default)]
     pub output: OutputSpec,
@@ -234,6 +237,44 @@ pub struct FractureSpec {
     /// Check after every this many steps (1: every step).
     #[serde(default = "one_u32")]
     pub every: u32,
+}
+
+/// When a free piece moves as a rigid body and when it returns (docs/math/rigid-fragments.md).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RigidSpec {
+    /// Pieces are checked for the rigid world after every this many steps.
+    #[serde(default = "ten_u32")]
+    pub check_every: u32,
+    /// A piece goes rigid only with less elastic energy than this per unit mass [J/kg]; the
+    /// default, 1e-2 J/kg, is the energy of lifting it by 1 mm.
+    #[serde(default = "default_rigid_strain_energy")]
+    pub max_strain_energy: Real,
+    /// ... and with a vibration (the motion that is not rigid) whose root mean square speed is
+    /// below this [m/s].
+    #[serde(default = "default_rigid_vibration")]
+    pub max_vibration_speed: Real,
+    /// A rigid fragment whose contacts give it more than this velocity change in one step
+    /// returns to the deformable body before that step [m/s].
+    #[serde(default = "default_rigid_return_speed")]
+    pub return_speed: Real,
+    /// A rigid fragment returns when it comes this close to a deformable piece (and a piece
+    /// goes rigid only four times as far from every deformable one) [m]; default: two element
+    /// sizes.
+    #[serde(default)]
+    pub margin: Option<Real>,
+}
+
+fn default_rigid_strain_energy() -> Real {
+    1e-2
+}
+
+fn default_rigid_vibration() -> Real {
+    0.05
+}
+
+fn default_rigid_return_speed() -> Real {
+    0.5
 }
 
 /// Pinned material.

@@ -81,6 +81,7 @@ pub fn cut_conformance(subject: &CutSubject<'_>) -> Vec<Check> {
     checks.push(degenerate_soups_never_panic(subject));
     checks.push(placement_gives_the_same_pieces(subject));
     checks.push(two_runs_give_the_same_bytes(subject));
+    checks.push(pieces_partition_the_body(subject));
     checks
 }
 
@@ -395,6 +396,26 @@ fn run_bytes(subject: &CutSubject<'_>) -> Vec<u64> {
         bytes.extend([p.volume.to_bits(), p.mass.to_bits()]);
     }
     bytes
+}
+
+/// After the subject's cuts, every node and every element lies in exactly one piece: what
+/// moves together is one piece (a node in two pieces would join them; a rigid hand-off or a
+/// renderer that trusts the pieces would tear the body there). Error: the nodes and elements
+/// counted in no piece or in more than one.
+fn pieces_partition_the_body(subject: &CutSubject<'_>) -> Check {
+    let mut body = (subject.make)(&Isometry3::identity());
+    for cut in &subject.cuts {
+        let _ = body.cut(cut);
+    }
+    let pieces = body.pieces();
+    let mut node_count = vec![0u32; body.num_nodes()];
+    let mut element_count = vec![0u32; body.num_frames()];
+    for p in &pieces {
+        p.nodes.iter().for_each(|&n| node_count[n as usize] += 1);
+        p.elements.iter().for_each(|&e| element_count[e as usize] += 1);
+    }
+    let wrong = node_count.iter().chain(&element_count).filter(|&&c| c != 1).count();
+    Check { name: "cut: pieces partition nodes and elements", error: wrong as Real, tolerance: 0.0 }
 }
 
 fn two_runs_give_the_same_bytes(subject: &CutSubject<'_>) -> Check {

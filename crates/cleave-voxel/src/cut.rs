@@ -103,18 +103,20 @@ impl VoxelMesh {
         faces
     }
 
-    /// Cube index → piece index, and the number of pieces: cubes joined through faces that are
-    /// not cut, numbered by their first cube.
+    /// Cube index → piece index, and the number of pieces: cubes joined through shared nodes
+    /// (what moves them together), numbered by their first cube. Cubes joined through a face
+    /// that is not cut share its nodes; so do cubes that touch at one edge or corner only
+    /// (the voxelization leaves such contacts joined, and a piece is what they move as).
     fn piece_of_cubes(&self) -> (Vec<u32>, usize) {
         let mut joined = UnionFind::new(self.num_cubes());
-        for (cube, &cell) in self.cells().iter().enumerate() {
-            for axis in 0..3 {
-                let mut next = cell;
-                next[axis] += 1;
-                if let Some(other) = self.cube_at(next)
-                    && self.cut_faces().binary_search(&CubeFace { cell, axis }).is_err()
-                {
-                    joined.union(cube, other);
+        let mut first_cube = vec![u32::MAX; self.num_nodes()];
+        for (cube, nodes) in self.cube_nodes().iter().enumerate() {
+            for &n in nodes {
+                match first_cube[n as usize] {
+                    u32::MAX => first_cube[n as usize] = cube as u32,
+                    first => {
+                        joined.union(first as usize, cube);
+                    }
                 }
             }
         }

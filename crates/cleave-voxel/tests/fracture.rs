@@ -100,3 +100,20 @@ fn a_notched_bar_pulled_apart_breaks_across_its_neck_and_nowhere_else() {
     let mass: Real = bar.pieces().iter().map(|p| p.mass).sum();
     assert!((mass - 1000.0 * 0.05f64.powi(3) * (320 - 8) as Real).abs() < 1e-12 * mass);
 }
+
+/// Cubes that touch at one corner or one edge share those nodes, so they move together: one
+/// piece, and every node in exactly one piece (a rigid hand-off trusts this; the pieces were
+/// once found through faces alone, and such a corner node lay in two of them).
+#[test]
+fn cubes_touching_at_a_corner_or_an_edge_are_one_piece() {
+    let material = Material::new(1e6, 0.3, 1000.0).unwrap();
+    for cells in [vec![[0, 0, 0], [1, 1, 1]], vec![[0, 0, 0], [1, 1, 0]], vec![[0, 0, 0], [2, 0, 0]]] {
+        let body = VoxelMesh::new(material, Point3::origin(), 0.1, &cells).unwrap();
+        let shared = cells[1].iter().zip(&cells[0]).all(|(a, b)| (a - b).abs() <= 1);
+        let pieces = body.pieces();
+        assert_eq!(pieces.len(), if shared { 1 } else { 2 }, "{cells:?}");
+        let mut count = vec![0; body.num_nodes()];
+        pieces.iter().flat_map(|p| &p.nodes).for_each(|&n| count[n as usize] += 1);
+        assert!(count.iter().all(|&c| c == 1), "{cells:?}: {count:?}");
+    }
+}

@@ -1,6 +1,7 @@
 //! Building a scene: the solid through its backend's registration, the one OBJ loader, colliders,
 //! contact defaults, the solver settings, the recorder and the first frame.
 
+use super::rigid::RigidRules;
 use super::*;
 use crate::record::Recorder;
 use crate::schema::{
@@ -12,6 +13,7 @@ use cleave_integrator::{
     Constraints, Integrator, MeshCollider, PlaneCollider, Preconditioner, Settings, Solver, SurfaceContact,
 };
 use cleave_registry::{BackendError, Region, Shape, SolidRequest};
+use cleave_rigid::{Obstacle, RigidWorld, WorldSettings};
 use nalgebra::Rotation3;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -94,6 +96,11 @@ impl Simulation {
                 return Err(build_error("`fracture.every` must be at least 1 step".into()));
             }
         }
+        if scene.rigid_fragments.is_some() && !capabilities.cut {
+            return Err(build_error(format!(
+                "`rigid_fragments` is set, but the {name} backend cannot cut, so it has no pieces to hand over"
+            )));
+        }
         for (index, event) in scene.timeline.iter().enumerate() {
             let kind = match event {
                 EventSpec::Cut { .. } => "Cut",
@@ -164,6 +171,7 @@ impl Simulation {
             }
         };
         let mut collider_meshes = Vec::new();
+        let mut collider_frictions = Vec::new();
         for (index, collider) in scene.colliders.iter().enumerate() {
             match collider {
                 ColliderSpec::Plane { point, normal, stiffness, damping, friction } => {
@@ -179,6 +187,7 @@ impl Simulation {
                     let mesh =
                         load_obj(&path, obj, transform, Some(&format!("colliders[{index}]")), Closed::NotRequired)?;
                     collider_meshes.push(mesh.clone());
+                    collider_frictions.push(*friction);
                     let reach = nonnegative(
                         &format!("colliders[{index}].reach"),
                         reach.unwrap_or(DEFAULT_REACH * element_size),
@@ -276,6 +285,44 @@ impl Simulation {
             };
         }
         let plane_colliders: Vec<_> = constraints.planes.iter().map(|p| (p.point, p.normal)).collect();
+        let rigid = match &scene.rigid_fragments {
+            None => None,
+            Some(spec) => {
+                let positive = |what: &str, value: Real| {
+                    if value.is_finite() && value > 0.0 {
+                        Ok(value)
+                    } else {
+                        Err(build_error(format!("rigid_fragments.{what} must be finite and positive, got {value}")))
+                    }
+                };
+                if spec.check_every == 0 {
+                    return Err(build_error("`rigid_fragments.check_every` must be at least 1 step".into()));
+                }
+                let rules = RigidRules {
+                    check_every: u64::from(spec.check_every),
+                    max_strain_energy: positive("max_strain_energy", spec.max_strain_energy)?,
+                    max_vibration_speed: positive("max_vibration_speed", spec.max_vibration_speed)?,
+                    margin: positive("margin", spec.margin.unwrap_or(2.0 * element_size))?,
+                };
+                let mut obstacles: Vec<Obstacle> = constraints
+                    .planes
+                    .iter()
+                    .map(|p| Obstacle::Plane { point: p.point, normal: p.normal, friction: p.friction })
+                    .collect();
+                obstacles.extend(collider_meshes.iter().zip(&collider_frictions).map(|(mesh, &friction)| {
+                    Obstacle::Mesh { vertices: mesh.vertices.clone(), triangles: mesh.triangles.clone(), friction }
+                }));
+                let world_settings = WorldSettings {
+                    gravity: settings.gravity,
+                    time_step: settings.time_step,
+                    damping: settings.rayleigh_alpha,
+                    friction: constraints.surface_contact.as_ref().map_or(0.5, |c| c.friction),
+                    return_speed: positive("return_speed", spec.return_speed)?,
+                };
+                let world = RigidWorld::new(world_settings, &obstacles).map_err(|e| build_error(e.to_string()))?;
+                Some(RigidHybrid::new(world, rules, constraints.pinned_dofs.clone()))
+            }
+        };
         let integrator = Integrator::new(discretization.as_ref(), settings, constraints)
             .map_err(|source| SceneError::Step { path: path.clone(), source })?;
 
@@ -309,6 +356,7 @@ impl Simulation {
             prepared: None,
             retired: None,
             cut_ahead: true,
+            rigid,
         };
         if let Some(recorder) = simulation.recorder.as_mut() {
             let i = &simulation.info;

@@ -4,11 +4,14 @@
 
 mod build;
 mod cut_ahead;
+mod rigid;
 mod timeline;
 
 use build::{Closed, load_obj, surface_contact_on};
 pub use build::{DEFAULT_CONTACT_STIFFNESS, DEFAULT_REACH};
 use cut_ahead::{CutCopy, PreparedCut};
+pub use rigid::RigidCounts;
+use rigid::RigidHybrid;
 use timeline::{TimedCut, prepare_timeline};
 
 use crate::record::{RecordError, Recorder};
@@ -160,6 +163,8 @@ pub struct Simulation {
     cut_ahead: bool,
     /// Stress fracture: checked after every this many steps, at this tensile strength [Pa].
     fracture: Option<(u64, Real)>,
+    /// Rigid fragments (`rigid_fragments` in the scene).
+    rigid: Option<RigidHybrid>,
 }
 
 /// A topology change just made, with what the rest of the simulation needs to follow it.
@@ -412,6 +417,11 @@ impl Simulation {
         let surface = surface.ok_or_else(|| build_error("a cut body must render its own surface".into()))?;
         let d = self.discretization.as_ref();
         let pins = self.registration.resolve_pins(d, &self.pins).map_err(|e| build_error(e.to_string()))?;
+        // The change renumbers the nodes: every rigid fragment returns (its nodes carry its
+        // motion) and may go rigid again at a later check.
+        if let Some(rigid) = self.rigid.as_mut() {
+            rigid.return_all(pins.pinned_dofs.clone());
+        }
         let constraints = Constraints {
             pinned_dofs: pins.pinned_dofs,
             extra_load: pins.extra_load,
@@ -471,10 +481,27 @@ impl Simulation {
             let prepared = self.take_prepared(event);
             self.apply_cut(&surface, prepared)?;
         }
-        let report = self
-            .integrator
-            .step(self.discretization.as_ref())
-            .map_err(|source| SceneError::Step { path: self.path.clone(), source })?;
+        let step_error = |source| SceneError::Step { path: self.path.clone(), source };
+        let counts_before = self.rigid.as_ref().map(|r| r.counts);
+        if let Some(rigid) = self.rigid.as_mut() {
+            rigid
+                .before_step(self.discretization.as_ref(), &mut self.integrator, &self.cuts.pieces)
+                .map_err(step_error)?;
+        }
+        let mut report = self.integrator.step(self.discretization.as_ref()).map_err(step_error)?;
+        if let Some(rigid) = self.rigid.as_mut() {
+            let surface = (&self.surface_points, self.surface_triangles.as_slice(), self.surface_piece.as_slice());
+            let d = self.discretization.as_ref();
+            if rigid.after_step(d, &mut self.integrator, &self.cuts.pieces, surface).map_err(step_error)? {
+                // The rigid nodes moved after the step: the energies of the state now.
+                let now = self.integrator.energies(d);
+                report.kinetic_energy = now.kinetic_energy;
+                report.elastic_energy = now.elastic_energy;
+                report.gravitational_energy = now.gravitational_energy;
+                report.penalty_energy = now.penalty_energy;
+            }
+            self.record_rigid_changes(counts_before)?;
+        }
         if self.integrator.steps_taken().is_multiple_of(self.surface_every) {
             self.record_surface()?;
         }
@@ -486,6 +513,41 @@ impl Simulation {
         }
         self.prepare_next_cut();
         Ok(report)
+    }
+
+    /// Records a `rigid` event when pieces went rigid or returned in this step.
+    fn record_rigid_changes(&mut self, before: Option<RigidCounts>) -> Result<(), SceneError> {
+        let (Some(before), Some(now)) = (before, self.rigid_counts()) else { return Ok(()) };
+        let (to, impact, near) =
+            (now.to_rigid - before.to_rigid, now.by_impact - before.by_impact, now.by_proximity - before.by_proximity);
+        if to + impact + near == 0 {
+            return Ok(());
+        }
+        let time = self.integrator.time();
+        if let Some(recorder) = self.recorder.as_mut() {
+            let message = format!(
+                "{to} pieces to rigid bodies, {impact} returned by an impact, {near} by a deformable piece near; {} rigid now",
+                now.rigid
+            );
+            recorder.event(time, "rigid", &message)?;
+        }
+        Ok(())
+    }
+
+    /// The state now: positions and velocities, three DOFs per node.
+    pub fn state(&self) -> (&[Real], &[Real]) {
+        (self.integrator.positions(), self.integrator.velocities())
+    }
+
+    /// The body being simulated (the backend's discretization).
+    pub fn body(&self) -> &dyn Discretization {
+        self.discretization.as_ref()
+    }
+
+    /// Hand-offs between the deformable body and the rigid world so far (`None` without
+    /// `rigid_fragments`).
+    pub fn rigid_counts(&self) -> Option<RigidCounts> {
+        self.rigid.as_ref().map(|r| r.counts)
     }
 
     /// Triangles of the render surface now (the surface contact searches the same ones).

@@ -1,0 +1,273 @@
+//! Rigid fragments in a scene (mueller2004 §2.4): which free pieces are handed to the rigid
+//! world (`cleave-rigid`, on rapier) and when they come back; the rules are derived in
+//! docs/math/rigid-fragments.md §2. The runner calls [`RigidHybrid::before_step`] and
+//! [`RigidHybrid::after_step`] around each integrator step; a cut or fracture returns every
+//! fragment first ([`RigidHybrid::return_all`]), since it renumbers the nodes.
+
+use cleave_core::{Discretization, Embedding, Piece, Point3, Real};
+use cleave_integrator::{Integrator, StepError};
+use cleave_rigid::{RigidFit, RigidWorld};
+use nalgebra::Matrix3;
+use std::collections::HashSet;
+
+/// The thresholds of the switching rules.
+#[derive(Clone, Debug)]
+pub(crate) struct RigidRules {
+    pub check_every: u64,
+    /// [J/kg]
+    pub max_strain_energy: Real,
+    /// [m/s]
+    pub max_vibration_speed: Real,
+    /// [m]
+    pub margin: Real,
+}
+
+/// Hand-offs over a run.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RigidCounts {
+    /// Pieces that became rigid bodies.
+    pub to_rigid: usize,
+    /// Fragments returned by an impact.
+    pub by_impact: usize,
+    /// Fragments returned because a deformable piece came near (or a cut or fracture).
+    pub by_proximity: usize,
+    /// Fragments rigid now.
+    pub rigid: usize,
+}
+
+pub(crate) struct RigidHybrid {
+    world: RigidWorld,
+    rules: RigidRules,
+    /// The DOFs the scene's pins hold (the rigid fragments' nodes are pinned besides these).
+    scene_pinned: Vec<usize>,
+    /// Per node: which fragment moves it (`u32::MAX`: none).
+    fragment_of: Vec<u32>,
+    /// Scratch for one piece's elastic energy.
+    alone: Vec<Real>,
+    alone_rotations: Vec<Matrix3<Real>>,
+    /// Scratch for the surface points a fragment's hull is made of.
+    surface_points: Vec<Point3<Real>>,
+    pub(crate) counts: RigidCounts,
+}
+
+/// The cells of a grid (edge `gap`) that hold deformable nodes: a point is near them when a
+/// cell next to its own holds one (always when one is within `gap`, never when none is within
+/// `2√3 gap`). Entering uses `4 · margin` cells and returning `margin` cells, so a piece that
+/// just went rigid (nothing within 4 margins) is not returned at once (that needs something
+/// within 2√3 ≈ 3.5 margins).
+struct NearGrid {
+    gap: Real,
+    cells: HashSet<[i64; 3]>,
+}
+
+impl NearGrid {
+    fn new(gap: Real) -> Self {
+        Self { gap, cells: HashSet::default() }
+    }
+
+    fn cell(&self, x: &[Real], node: u32) -> [i64; 3] {
+        let k = 3 * node as usize;
+        [0, 1, 2].map(|a| (x[k + a] / self.gap).floor() as i64)
+    }
+
+    fn insert(&mut self, nodes: &[u32], x: &[Real]) {
+        for &n in nodes {
+            let cell = self.cell(x, n);
+            self.cells.insert(cell);
+        }
+    }
+
+    fn near(&self, nodes: &[u32], x: &[Real]) -> bool {
+        nodes.iter().any(|&n| {
+            let [i, j, k] = self.cell(x, n);
+            (-1..=1).any(|a| (-1..=1).any(|b| (-1..=1).any(|c| self.cells.contains(&[i + a, j + b, k + c]))))
+        })
+    }
+}
+
+impl RigidHybrid {
+    pub(crate) fn new(world: RigidWorld, rules: RigidRules, scene_pinned: Vec<usize>) -> Self {
+        Self {
+            world,
+            rules,
+            scene_pinned,
+            fragment_of: Vec::new(),
+            alone: Vec::new(),
+            alone_rotations: Vec::new(),
+            surface_points: Vec::new(),
+            counts: RigidCounts::default(),
+        }
+    }
+
+    /// The pinned DOFs the integrator needs: the scene's and every rigid fragment's.
+    fn pinned_dofs(&self) -> Vec<usize> {
+        let mut dofs = self.scene_pinned.clone();
+        for f in self.world.fragments() {
+            dofs.extend(f.nodes.iter().flat_map(|&n| (0..3).map(move |a| 3 * n as usize + a)));
+        }
+        dofs.sort_unstable();
+        dofs.dedup();
+        dofs
+    }
+
+    fn refresh_fragment_of(&mut self, num_nodes: usize) {
+        self.fragment_of.clear();
+        self.fragment_of.resize(num_nodes, u32::MAX);
+        for (i, f) in self.world.fragments().iter().enumerate() {
+            for &n in &f.nodes {
+                self.fragment_of[n as usize] = i as u32;
+            }
+        }
+        self.counts.rigid = self.world.fragments().len();
+    }
+
+    /// Before a topology change: every fragment returns (its nodes already carry its motion);
+    /// the change's rebuild unpins them. `scene_pinned`: the scene's pins after the change.
+    pub(crate) fn return_all(&mut self, scene_pinned: Vec<usize>) {
+        self.counts.by_proximity += self.world.fragments().len();
+        self.world.clear();
+        self.scene_pinned = scene_pinned;
+        self.fragment_of.clear();
+        self.counts.rigid = 0;
+    }
+
+    /// Before the integrator's step: the rigid world steps (fragments hit hard enough return,
+    /// rolled back to before the step), and fragments near a deformable piece return.
+    pub(crate) fn before_step(
+        &mut self,
+        body: &dyn Discretization,
+        integrator: &mut Integrator,
+        pieces: &[Piece],
+    ) -> Result<(), StepError> {
+        if self.world.is_empty() {
+            return Ok(());
+        }
+        // Fragments about to hit an obstacle return two steps ahead (docs §2).
+        let ahead = self.world.about_to_hit(integrator.positions(), integrator.velocities(), self.rules.margin, 2.0);
+        for &i in ahead.iter().rev() {
+            self.world.remove(i);
+        }
+        let by_impact = ahead.len() + self.world.step().len();
+        self.counts.by_impact += by_impact;
+        let mut changed = by_impact > 0;
+        self.refresh_fragment_of(body.num_nodes());
+        // Proximity: the deformable pieces' boxes against each fragment's.
+        let x = integrator.positions();
+        let mut deformable = NearGrid::new(self.rules.margin);
+        for p in pieces.iter().filter(|p| p.nodes.first().is_some_and(|&n| self.fragment_of[n as usize] == u32::MAX)) {
+            deformable.insert(&p.nodes, x);
+        }
+        let near: Vec<usize> = (0..self.world.fragments().len())
+            .filter(|&i| deformable.near(&self.world.fragments()[i].nodes, x))
+            .collect();
+        for &i in near.iter().rev() {
+            self.world.remove(i);
+        }
+        self.counts.by_proximity += near.len();
+        changed |= !near.is_empty();
+        if changed {
+            self.refresh_fragment_of(body.num_nodes());
+            integrator.set_pinned_dofs(body, self.pinned_dofs())?;
+        }
+        Ok(())
+    }
+
+    /// After the integrator's step: the fragments' motion (already stepped) is written into
+    /// their nodes; every `check_every` steps, quiet free pieces far from deformable ones are
+    /// handed to the rigid world. Returns whether the state was edited (its energies are then
+    /// to be evaluated again).
+    pub(crate) fn after_step(
+        &mut self,
+        body: &dyn Discretization,
+        integrator: &mut Integrator,
+        pieces: &[Piece],
+        surface: (&Embedding, &[[u32; 3]], &[u32]),
+    ) -> Result<bool, StepError> {
+        let edited = !self.world.is_empty();
+        if edited {
+            let world = &self.world;
+            integrator.edit_state(body, |x, v| world.write_motion(x, v));
+        }
+        if !integrator.steps_taken().is_multiple_of(self.rules.check_every) {
+            return Ok(edited);
+        }
+        self.refresh_fragment_of(body.num_nodes());
+        let mass = body.mass().diagonal();
+        let (x, v) = (integrator.positions(), integrator.velocities());
+        let pinned: Vec<bool> = {
+            let mut pinned = vec![false; body.num_nodes()];
+            self.scene_pinned.iter().for_each(|&d| pinned[d / 3] = true);
+            pinned
+        };
+        // Candidates: free, quiet and nearly unstrained; the others stay deformable.
+        let vibration_limit = 0.5 * self.rules.max_vibration_speed.powi(2);
+        let mut candidates = Vec::new();
+        let mut deformable = NearGrid::new(4.0 * self.rules.margin);
+        for (index, piece) in pieces.iter().enumerate() {
+            let Some(&first) = piece.nodes.first() else { continue };
+            if self.fragment_of[first as usize] != u32::MAX {
+                continue;
+            }
+            let quiet = !piece.nodes.iter().any(|&n| pinned[n as usize])
+                && RigidFit::of(&piece.nodes, mass, x, v).is_some_and(|fit| {
+                    fit.vibration_energy_per_mass() <= vibration_limit
+                        && self.strain_energy(body, piece, x, integrator.rotations())
+                            <= self.rules.max_strain_energy * fit.mass
+                });
+            if quiet { candidates.push(index) } else { deformable.insert(&piece.nodes, x) }
+        }
+        let (embedding, triangles, piece_of) = surface;
+        let mut points = std::mem::take(&mut self.surface_points);
+        if !candidates.is_empty() {
+            embedding.evaluate(x, &mut points);
+        }
+        let mut added = false;
+        for index in candidates {
+            if deformable.near(&pieces[index].nodes, x) {
+                continue;
+            }
+            let hull: Vec<Point3<Real>> = triangles
+                .iter()
+                .zip(piece_of)
+                .filter(|&(_, &p)| p as usize == index)
+                .flat_map(|(t, _)| t.iter().map(|&i| points[i as usize]))
+                .collect();
+            let nodes = pieces[index].nodes.clone();
+            // A piece the rigid world refuses (no volume) stays deformable.
+            if self.world.add(nodes, mass, x, v, &hull).is_ok() {
+                self.counts.to_rigid += 1;
+                added = true;
+            }
+        }
+        self.surface_points = points;
+        if added {
+            self.refresh_fragment_of(body.num_nodes());
+            integrator.set_pinned_dofs(body, self.pinned_dofs())?;
+        }
+        Ok(edited)
+    }
+
+    /// The elastic energy of one piece: the body's with every other node at its rest position
+    /// and every other frame unrotated (an element at rest stores none, and each element lies
+    /// in one piece); the piece's frames keep the step's rotations.
+    fn strain_energy(
+        &mut self,
+        body: &dyn Discretization,
+        piece: &Piece,
+        x: &[Real],
+        rotations: &[Matrix3<Real>],
+    ) -> Real {
+        self.alone.clear();
+        self.alone.extend_from_slice(body.rest_dofs());
+        for &n in &piece.nodes {
+            let k = 3 * n as usize;
+            self.alone[k..k + 3].copy_from_slice(&x[k..k + 3]);
+        }
+        self.alone_rotations.clear();
+        self.alone_rotations.resize(body.num_frames(), Matrix3::identity());
+        for &e in &piece.elements {
+            self.alone_rotations[e as usize] = rotations[e as usize];
+        }
+        body.elastic_energy(&self.alone_rotations, &self.alone)
+    }
+}

@@ -1,0 +1,86 @@
+//! Rigid fragments in a scene (docs/math/rigid-fragments.md): a voxel block dropped onto the
+//! ground is handed to the rigid world while it falls and back at the impact; its fall is the
+//! parabola's (closer than the integrator's implicit Euler), its momentum is `−M g t`,
+//! and the total energy never grows.
+
+use cleave_core::{Real, Vector3};
+use cleave_scene::Simulation;
+use cleave_scene::run::parse_scene;
+use std::path::Path;
+
+fn scene(rigid: &str) -> String {
+    format!(
+        r#"Scene(
+    name: "rigid drop",
+    object: Box(min: (0.0, 0.0, 0.3), max: (0.1, 0.075, 0.35)),
+    material: (youngs_modulus: 5.0e5, poisson_ratio: 0.3, density: 1000.0, rayleigh_alpha: 0.0, rayleigh_beta: 0.01),
+    backend: "voxel",
+    settings: {{ "voxel": (cell_size: 0.025) }},
+    time_step: 0.01,
+    steps: 60,
+    gravity: (0.0, 0.0, -9.81),
+    solver: Cholesky,
+    colliders: [Plane(point: (0.0, 0.0, 0.0), normal: (0.0, 0.0, 1.0), stiffness: 2.0e4, damping: 20.0, friction: 0.5)],
+    {rigid}
+)"#
+    )
+}
+
+/// Mass, centre of mass and linear momentum of the body.
+fn centre_and_momentum(simulation: &Simulation) -> (Real, Vector3<Real>, Vector3<Real>) {
+    let mass = simulation.body().mass().diagonal();
+    let (x, v) = simulation.state();
+    let (mut m, mut first, mut p) = (0.0, Vector3::zeros(), Vector3::zeros());
+    for k in (0..x.len()).step_by(3) {
+        m += mass[k];
+        first += mass[k] * Vector3::new(x[k], x[k + 1], x[k + 2]);
+        p += mass[k] * Vector3::new(v[k], v[k + 1], v[k + 2]);
+    }
+    (m, first / m, p)
+}
+
+#[test]
+fn a_block_falls_rigid_and_returns_at_the_impact_without_gaining_energy() {
+    let build = |rigid: &str| {
+        let loaded = parse_scene(Path::new("rigid.ron"), &scene(rigid)).unwrap();
+        Simulation::build(&loaded, None).unwrap()
+    };
+    let mut rigid = build("rigid_fragments: (check_every: 1),");
+    let mut plain = build("");
+    let mut first_energy = None;
+    let mut impact_step = None;
+    while rigid.steps_done() < rigid.total_steps() {
+        let report = rigid.step().unwrap();
+        let energy = report.total_energy();
+        let first = *first_energy.get_or_insert(energy);
+        assert!(energy <= first + 1e-9 * first.abs(), "step {}: energy {energy} grew from {first}", report.step);
+        let counts = rigid.rigid_counts().unwrap();
+        if impact_step.is_none() {
+            plain.step().unwrap();
+            if counts.by_impact > 0 {
+                impact_step = Some(report.step);
+                continue;
+            }
+            let (m, centre, p) = centre_and_momentum(&rigid);
+            let (_, plain_centre, plain_p) = centre_and_momentum(&plain);
+            let t = rigid.steps_done() as Real * 0.01;
+            assert!((p - Vector3::new(0.0, 0.0, -m * 9.81 * t)).norm() < 1e-9 * m * 9.81 * t, "{p} at t = {t}");
+            assert!((p - plain_p).norm() < 1e-9 * plain_p.norm());
+            // Rapier integrates gravity in substeps, the integrator in one implicit Euler step:
+            // both fall as the parabola to O(g h t); the rigid fall is the closer one.
+            let exact = 0.325 - 0.5 * 9.81 * t * t;
+            let (rigid_error, plain_error) = ((centre.z - exact).abs(), (plain_centre.z - exact).abs());
+            assert!(
+                rigid_error <= plain_error + 1e-12 && plain_error <= 0.5 * 9.81 * 0.01 * t + 1e-12,
+                "{rigid_error} {plain_error}"
+            );
+            assert!((centre.xy() - plain_centre.xy()).norm() < 1e-12);
+        }
+    }
+    let counts = rigid.rigid_counts().unwrap();
+    assert_eq!(counts.to_rigid.min(2), 2, "rigid while falling and again at rest: {counts:?}");
+    let impact = impact_step.expect("the impact returns the block to the FE model");
+    // 5 cm falls at most 0.30 m: t = √(2·0.3/g) = 0.247 s, the 25th step.
+    assert!((20..=26).contains(&impact), "impact at step {impact}");
+    assert_eq!(counts.rigid, 1, "at rest on the ground it is rigid again: {counts:?}");
+}
