@@ -126,10 +126,25 @@ pub struct WorldSettings {
     pub damping: Real,
     /// Friction between two fragments.
     pub friction: Real,
-    /// A fragment whose contacts in one step give it an impulse above `return_speed` times its
-    /// mass [m/s] is returned to the deformable body before that step (an impact the FEM must
+    /// A fragment whose contacts in one step change its velocity by more than `return_speed`
+    /// [m/s] (net impulse over mass) is returned to the deformable body before that step (an impact the FEM must
     /// resolve and may fracture at).
     pub return_speed: Real,
+}
+
+/// The collider of a fragment, in world coordinates at the hand-off.
+#[derive(Clone, Copy, Debug)]
+pub enum FragmentShape<'a> {
+    /// The convex hull of these points.
+    Hull(&'a [Point3<Real>]),
+    /// This closed triangle mesh (the piece's render surface): exact, so fragments that fit
+    /// into each other along a crack do not overlap as their hulls would.
+    Surface {
+        /// vertices
+        vertices: &'a [Point3<Real>],
+        /// outward triangles
+        triangles: &'a [[u32; 3]],
+    },
 }
 
 /// A piece moving as a rigid body.
@@ -176,8 +191,8 @@ pub enum HandOffError {
     /// Its convex hull could not be built (fewer than four points not in one plane).
     #[error("the piece's points span no volume, so they have no convex hull")]
     NoHull,
-    /// An obstacle mesh that rapier refuses.
-    #[error("obstacle mesh: {0}")]
+    /// A mesh (an obstacle's or a fragment's surface) that rapier refuses.
+    #[error("triangle mesh: {0}")]
     Mesh(String),
 }
 
@@ -201,6 +216,10 @@ impl RigidWorld {
         }
         world.gravity = to_glam(&settings.gravity);
         world.integration_parameters.dt = settings.time_step;
+        // Fragments handed over while pressed together by the FE contact overlap a little;
+        // rapier's default push-out (up to 10 m/s) would read as an impact. At a tenth of the
+        // return speed it separates them gently and stays below the impact rule.
+        world.integration_parameters.normalized_max_corrective_velocity = 0.1 * settings.return_speed;
         for obstacle in obstacles {
             let (collider, point) = match obstacle {
                 Obstacle::Plane { point, normal, friction } => {
@@ -231,25 +250,28 @@ impl RigidWorld {
         self.fragments.is_empty()
     }
 
-    /// Makes `nodes` a rigid body: its shape the nodes' current positions, its collider the
-    /// convex hull of `hull_points` (the piece's surface), its mass and inertia the nodes'
-    /// lumped masses, and its velocity the rigid fit of theirs (same momenta). Returns the fit.
+    /// Makes `nodes` a rigid body: its shape the nodes' current positions, its collider
+    /// `shape`, its mass and inertia the nodes' lumped masses, and its velocity the rigid fit of
+    /// theirs (same momenta). Returns the fit.
     pub fn add(
         &mut self,
         nodes: Vec<u32>,
         mass_diagonal: &[Real],
         x: &[Real],
         v: &[Real],
-        hull_points: &[Point3<Real>],
+        shape: FragmentShape<'_>,
     ) -> Result<RigidFit, HandOffError> {
         let fit = RigidFit::of(&nodes, mass_diagonal, x, v).ok_or(HandOffError::Degenerate)?;
-        let local: Vec<Vector> = hull_points.iter().map(|p| to_glam(&(p - fit.centre))).collect();
-        let collider = ColliderBuilder::convex_hull(&local)
-            .ok_or(HandOffError::NoHull)?
-            .density(0.0)
-            .friction(self.settings.friction)
-            .restitution(0.0)
-            .build();
+        let local =
+            |points: &[Point3<Real>]| -> Vec<Vector> { points.iter().map(|p| to_glam(&(p - fit.centre))).collect() };
+        let builder = match shape {
+            FragmentShape::Hull(points) => ColliderBuilder::convex_hull(&local(points)).ok_or(HandOffError::NoHull)?,
+            FragmentShape::Surface { vertices, triangles } => {
+                ColliderBuilder::trimesh(local(vertices), triangles.to_vec())
+                    .map_err(|e| HandOffError::Mesh(e.to_string()))?
+            }
+        };
+        let collider = builder.density(0.0).friction(self.settings.friction).restitution(0.0).build();
         let i = &fit.inertia;
         let inertia = rapier3d_f64::math::Matrix::from_cols(
             DVec3::new(i[(0, 0)], i[(1, 0)], i[(2, 0)]),
@@ -296,7 +318,7 @@ impl RigidWorld {
     }
 
     /// Advances the rigid world by one step. Fragments whose contacts gave them more than
-    /// `return_speed × mass` of impulse are taken out and returned (indices in the fragment
+    /// `return_speed × mass` of net contact impulse are taken out and returned (indices in the fragment
     /// list before the step, which they leave): the world is rolled back to before the step and
     /// stepped again without them, so the deformable body meets the impact from the velocities
     /// before it. Fragments near a returned one are not returned here (the caller's proximity
@@ -378,10 +400,19 @@ impl RigidWorld {
             .collect()
     }
 
-    /// The magnitude of the contact impulse fragment `index` received in the last step [N·s].
+    /// The net contact impulse fragment `index` received in the last step beyond what held
+    /// it against gravity, `|J + M g h|` [N·s]: its velocity change by contact, less the
+    /// support of a resting body, times its mass. A net impulse, not a sum of magnitudes: a
+    /// chip wedged under a heavy fragment is pressed from above and from below, which cancels;
+    /// an impact does not. (Rapier's normal points from the pair's first collider to its
+    /// second, whose body receives the impulse along it.)
     fn contact_impulse(&self, index: usize) -> Real {
-        let collider = self.fragments[index].collider;
-        self.world.narrow_phase.contact_pairs_with(collider).map(|pair| pair.total_impulse().length()).sum()
+        let fragment = &self.fragments[index];
+        let collider = fragment.collider;
+        let net = self.world.narrow_phase.contact_pairs_with(collider).fold(DVec3::ZERO, |sum, pair| {
+            if pair.collider2 == collider { sum + pair.total_impulse() } else { sum - pair.total_impulse() }
+        });
+        (net + fragment.mass * self.settings.time_step * to_glam(&self.settings.gravity)).length()
     }
 
     /// Writes each fragment's rigid motion into its nodes: `x = c + R r`, `v = v_c + ω × (x − c)`.

@@ -99,7 +99,7 @@ fn hand_off_both_ways_conserves_momenta_and_adds_no_energy() {
     let nodes: Vec<u32> = (10..50).collect();
     let (p, l, e) = momenta(&nodes, &m, &x, &v);
     let mut world = RigidWorld::new(settings(Vector3::zeros()), &[]).unwrap();
-    world.add(nodes.clone(), &m, &x, &v, &points_of(&nodes, &x)).unwrap();
+    world.add(nodes.clone(), &m, &x, &v, FragmentShape::Hull(&points_of(&nodes, &x))).unwrap();
     let (p_rigid, l_rigid) = world.momenta(0);
     assert!(relative(&p_rigid, &p) < 1e-9, "{p_rigid} vs {p}");
     assert!(relative(&l_rigid, &l) < 1e-9, "{l_rigid} vs {l}");
@@ -131,7 +131,7 @@ fn free_flight_keeps_linear_momentum_and_the_shape() {
     let (x, v, m) = cloud(20, Vector3::new(0.0, 0.0, 3.0), 5);
     let nodes: Vec<u32> = (0..20).collect();
     let mut world = RigidWorld::new(settings(Vector3::new(0.0, 0.0, -9.81)), &[]).unwrap();
-    let fit = world.add(nodes.clone(), &m, &x, &v, &points_of(&nodes, &x)).unwrap();
+    let fit = world.add(nodes.clone(), &m, &x, &v, FragmentShape::Hull(&points_of(&nodes, &x))).unwrap();
     let steps = 40;
     for _ in 0..steps {
         assert!(world.step().is_empty());
@@ -171,7 +171,7 @@ fn an_impact_returns_the_fragment_with_its_velocity_before_the_step() {
     let (x, v, m) = falling_box(0.005, 3.0);
     let nodes: Vec<u32> = (0..8).collect();
     let mut world = RigidWorld::new(settings(Vector3::new(0.0, 0.0, -9.81)), &ground()).unwrap();
-    world.add(nodes.clone(), &m, &x, &v, &points_of(&nodes, &x)).unwrap();
+    world.add(nodes.clone(), &m, &x, &v, FragmentShape::Hull(&points_of(&nodes, &x))).unwrap();
     let mut returned = Vec::new();
     let mut last = (x.clone(), v.clone());
     for _ in 0..20 {
@@ -195,7 +195,7 @@ fn resting_on_the_ground_stays_rigid() {
     let (x, v, m) = falling_box(0.001, 0.0);
     let nodes: Vec<u32> = (0..8).collect();
     let mut world = RigidWorld::new(settings(Vector3::new(0.0, 0.0, -9.81)), &ground()).unwrap();
-    world.add(nodes.clone(), &m, &x, &v, &points_of(&nodes, &x)).unwrap();
+    world.add(nodes.clone(), &m, &x, &v, FragmentShape::Hull(&points_of(&nodes, &x))).unwrap();
     for _ in 0..200 {
         assert!(world.step().is_empty(), "settling under gravity is no impact");
     }
@@ -212,7 +212,7 @@ fn a_fast_approach_is_seen_two_steps_ahead_and_a_slow_one_not() {
     let ahead = |z: Real, speed: Real| {
         let (x, v, m) = falling_box(z, speed);
         let mut world = RigidWorld::new(settings(Vector3::new(0.0, 0.0, -9.81)), &ground()).unwrap();
-        world.add(nodes.clone(), &m, &x, &v, &points_of(&nodes, &x)).unwrap();
+        world.add(nodes.clone(), &m, &x, &v, FragmentShape::Hull(&points_of(&nodes, &x))).unwrap();
         world.about_to_hit(&x, &v, 0.005, 2.0)
     };
     // Two steps of 5 ms at 3 m/s cover 3 cm.

@@ -237,6 +237,11 @@ pub struct FractureSpec {
     /// Check after every this many steps (1: every step).
     #[serde(default = "one_u32")]
     pub every: u32,
+    /// Check only in the first this many steps after a rigid fragment returned at an impact
+    /// (the paper's hybrid: fracture at impacts, not under a resting load); needs
+    /// `rigid_fragments`. Absent: check all the time.
+    #[serde(default)]
+    pub after_impacts: Option<u32>,
 }
 
 /// When a free piece moves as a rigid body and when it returns (docs/math/rigid-fragments.md).

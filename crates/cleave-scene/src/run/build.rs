@@ -95,6 +95,11 @@ impl Simulation {
             if fracture.every == 0 {
                 return Err(build_error("`fracture.every` must be at least 1 step".into()));
             }
+            if fracture.after_impacts.is_some() && scene.rigid_fragments.is_none() {
+                return Err(build_error(
+                    "`fracture.after_impacts` is set, but there are no `rigid_fragments` to have impacts".into(),
+                ));
+            }
         }
         if scene.rigid_fragments.is_some() && !capabilities.cut {
             return Err(build_error(format!(
@@ -335,7 +340,12 @@ impl Simulation {
             path,
             steps: scene.steps,
             surface_every: u64::from(scene.output.surface_every.max(1)),
-            fracture: scene.fracture.as_ref().zip(material.tensile_strength).map(|(f, s)| (u64::from(f.every), s)),
+            fracture: scene.fracture.as_ref().zip(material.tensile_strength).map(|(f, strength)| FractureCheck {
+                every: u64::from(f.every),
+                strength,
+                after_impacts: f.after_impacts.map(u64::from),
+                until: 0,
+            }),
             discretization: Arc::from(discretization),
             integrator,
             surface_triangles,

@@ -161,10 +161,23 @@ pub struct Simulation {
     retired: Option<Arc<dyn Discretization>>,
     /// See [`Simulation::set_cut_ahead`].
     cut_ahead: bool,
-    /// Stress fracture: checked after every this many steps, at this tensile strength [Pa].
-    fracture: Option<(u64, Real)>,
+    /// Stress fracture: when it is checked, and at what strength.
+    fracture: Option<FractureCheck>,
     /// Rigid fragments (`rigid_fragments` in the scene).
     rigid: Option<RigidHybrid>,
+}
+
+/// When stress fracture is checked.
+#[derive(Clone, Copy, Debug)]
+struct FractureCheck {
+    /// After every this many steps…
+    every: u64,
+    /// …at this tensile strength [Pa]…
+    strength: Real,
+    /// …and, if set, only within this many steps after an impact…
+    after_impacts: Option<u64>,
+    /// …that is, up to this step.
+    until: u64,
 }
 
 /// A topology change just made, with what the rest of the simulation needs to follow it.
@@ -506,10 +519,19 @@ impl Simulation {
             self.record_surface()?;
         }
         self.record_stats(&report)?;
-        if let Some((every, strength)) = self.fracture
-            && self.integrator.steps_taken().is_multiple_of(every)
-        {
-            self.apply_fracture(strength)?;
+        if let Some(check) = self.fracture.as_mut() {
+            let steps = self.integrator.steps_taken();
+            let impacts = |c: Option<RigidCounts>| c.map_or(0, |c| c.by_impact);
+            if let Some(window) = check.after_impacts
+                && impacts(self.rigid.as_ref().map(|r| r.counts)) > impacts(counts_before)
+            {
+                check.until = steps + window;
+            }
+            let due = steps.is_multiple_of(check.every) && (check.after_impacts.is_none() || steps <= check.until);
+            if due {
+                let strength = check.strength;
+                self.apply_fracture(strength)?;
+            }
         }
         self.prepare_next_cut();
         Ok(report)

@@ -6,9 +6,9 @@
 
 use cleave_core::{Discretization, Embedding, Piece, Point3, Real};
 use cleave_integrator::{Integrator, StepError};
-use cleave_rigid::{RigidFit, RigidWorld};
+use cleave_rigid::{FragmentShape, RigidFit, RigidWorld};
 use nalgebra::Matrix3;
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 
 /// The thresholds of the switching rules.
 #[derive(Clone, Debug)]
@@ -45,7 +45,7 @@ pub(crate) struct RigidHybrid {
     /// Scratch for one piece's elastic energy.
     alone: Vec<Real>,
     alone_rotations: Vec<Matrix3<Real>>,
-    /// Scratch for the surface points a fragment's hull is made of.
+    /// Scratch for the surface points a fragment's collider is made of.
     surface_points: Vec<Point3<Real>>,
     pub(crate) counts: RigidCounts,
 }
@@ -222,19 +222,24 @@ impl RigidHybrid {
             embedding.evaluate(x, &mut points);
         }
         let mut added = false;
+        let mut local_vertex = HashMap::new();
         for index in candidates {
             if deformable.near(&pieces[index].nodes, x) {
                 continue;
             }
-            let hull: Vec<Point3<Real>> = triangles
-                .iter()
-                .zip(piece_of)
-                .filter(|&(_, &p)| p as usize == index)
-                .flat_map(|(t, _)| t.iter().map(|&i| points[i as usize]))
-                .collect();
-            let nodes = pieces[index].nodes.clone();
-            // A piece the rigid world refuses (no volume) stays deformable.
-            if self.world.add(nodes, mass, x, v, &hull).is_ok() {
+            // The piece's own surface triangles, over its own vertices.
+            local_vertex.clear();
+            let (mut vertices, mut own) = (Vec::new(), Vec::new());
+            for (t, _) in triangles.iter().zip(piece_of).filter(|&(_, &p)| p as usize == index) {
+                own.push(t.map(|i| {
+                    *local_vertex.entry(i).or_insert_with(|| {
+                        vertices.push(points[i as usize]);
+                        (vertices.len() - 1) as u32
+                    })
+                }));
+            }
+            let shape = FragmentShape::Surface { vertices: &vertices, triangles: &own };
+            if self.world.add(pieces[index].nodes.clone(), mass, x, v, shape).is_ok() {
                 self.counts.to_rigid += 1;
                 added = true;
             }
