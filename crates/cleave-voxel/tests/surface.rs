@@ -113,3 +113,70 @@ fn every_piece_stays_closed_after_planes_blades_and_random_soups() {
         check_closed(&mut mesh, &format!("{name}: oblique plane"));
     }
 }
+
+/// The faces a fracture at `cell` across `normal` separates (the paper's rule, as `fracture`
+/// applies it): cubes within `reach` labelled by the side of the plane through the cube's
+/// centre, faces between two labels.
+fn break_faces(mesh: &VoxelMesh, cell: [i32; 3], normal: Vector3<Real>, reach: i32) -> Vec<cleave_voxel::CubeFace> {
+    let side = |c: [i32; 3]| {
+        let d = Vector3::new((c[0] - cell[0]) as Real, (c[1] - cell[1]) as Real, (c[2] - cell[2]) as Real);
+        d.dot(&normal) > 0.0
+    };
+    let mut faces = Vec::new();
+    for dx in -reach..=reach {
+        for dy in -reach..=reach {
+            for dz in -reach..=reach {
+                let c = [cell[0] + dx, cell[1] + dy, cell[2] + dz];
+                for axis in 0..3 {
+                    let mut next = c;
+                    next[axis] += 1;
+                    let inside = |n: [i32; 3]| (0..3).all(|a| (n[a] - cell[a]).abs() <= reach);
+                    if inside(next)
+                        && mesh.cube_at(c).is_some()
+                        && mesh.cube_at(next).is_some()
+                        && side(c) != side(next)
+                    {
+                        faces.push(cleave_voxel::CubeFace { cell: c, axis });
+                    }
+                }
+            }
+        }
+    }
+    faces
+}
+
+/// Random break patterns, as stress fracture makes them: planes of random direction through
+/// random cubes, cracks that end inside the body (a 5 × 5 × 5 neighbourhood), and single cubes
+/// torn out (all six faces); every piece stays closed after each.
+#[test]
+fn every_piece_stays_closed_after_random_breaks_and_cubes_torn_out() {
+    let mut random = cleave_testkit::Lcg::new(29);
+    let input = load("bunny.obj", 0.02, true);
+    let mut mesh = voxel_body(&input, 0.0089);
+    for round in 0..60 {
+        let cells = mesh.cells();
+        let cell = cells[((random.next() * 0.5 + 0.5) * cells.len() as Real) as usize % cells.len()];
+        let faces = if round % 4 == 3 {
+            // A single cube torn out.
+            let mut faces = Vec::new();
+            for axis in 0..3 {
+                let mut below = cell;
+                below[axis] -= 1;
+                faces.push(cleave_voxel::CubeFace { cell, axis });
+                faces.push(cleave_voxel::CubeFace { cell: below, axis });
+            }
+            faces.retain(|f| {
+                let mut next = f.cell;
+                next[f.axis] += 1;
+                mesh.cube_at(f.cell).is_some() && mesh.cube_at(next).is_some()
+            });
+            faces
+        } else {
+            let normal = Vector3::new(random.next(), random.next(), random.next()).normalize();
+            break_faces(&mesh, cell, normal, 2)
+        };
+        let (broken, _) = mesh.separate_faces(&faces).unwrap();
+        mesh = broken;
+        check_closed(&mut mesh, &format!("break {round} at {cell:?}"));
+    }
+}
