@@ -292,6 +292,15 @@ pub enum PinSpec {
         min: [Real; 3],
         /// maximum corner
         max: [Real; 3],
+        /// The held nodes move at this constant velocity [m/s] (a pulled or pushed end);
+        /// default: at rest.
+        #[serde(default)]
+        velocity: [Real; 3],
+        /// Which components are held (x, y, z); default all three. A grip that holds only
+        /// the pull's component leaves the sides free to contract (no stress concentration at
+        /// the grip's edge from clamping the Poisson contraction).
+        #[serde(default = "all_components")]
+        components: [bool; 3],
     },
 }
 
@@ -460,6 +469,10 @@ pub struct OutputSpec {
     /// Flush (close a chunk and write it to disk) every this many steps.
     #[serde(default = "ten_u32")]
     pub flush_every: u32,
+}
+
+fn all_components() -> [bool; 3] {
+    [true; 3]
 }
 
 fn one_u32() -> u32 {

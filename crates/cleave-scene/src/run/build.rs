@@ -58,10 +58,29 @@ impl Simulation {
             .pins
             .iter()
             .map(|pin| {
-                let PinSpec::Region { min, max } = pin;
+                let PinSpec::Region { min, max, .. } = pin;
                 Region { min: *min, max: *max }
             })
             .collect();
+        let pin_velocities: Vec<Vector3<Real>> = scene
+            .pins
+            .iter()
+            .map(|pin| {
+                let PinSpec::Region { velocity, .. } = pin;
+                Vector3::from(*velocity)
+            })
+            .collect();
+        let pin_components: Vec<[bool; 3]> = scene
+            .pins
+            .iter()
+            .map(|pin| {
+                let PinSpec::Region { components, .. } = pin;
+                *components
+            })
+            .collect();
+        if let Some(bad) = pin_velocities.iter().find(|v| !v.iter().all(|c| c.is_finite())) {
+            return Err(build_error(format!("a pin's velocity must be finite, got {bad:?}")));
+        }
         let mut constraints = Constraints::default();
 
         // The backend: the scene's default or the override, through its one registration.
@@ -136,6 +155,11 @@ impl Simulation {
         })?;
         constraints.pinned_dofs = built.pins.pinned_dofs;
         constraints.extra_load = built.pins.extra_load;
+        if pin_components.iter().any(|c| *c != [true; 3]) {
+            constraints.pinned_dofs =
+                component_pins(registration.as_ref(), built.discretization.as_ref(), &pins, &pin_components)
+                    .map_err(build_error)?;
+        }
         let mut discretization = built.discretization;
         let (element_count, element_size) = (built.elements, built.element_size);
         let TriangleMesh { vertices: surface_vertices, triangles: mut surface_triangles, .. } = built.surface;
@@ -367,7 +391,11 @@ impl Simulation {
             retired: None,
             cut_ahead: true,
             rigid,
+            pin_velocities,
+            pin_components,
+            moving_dofs: Vec::new(),
         };
+        simulation.resolve_moving_pins()?;
         if let Some(recorder) = simulation.recorder.as_mut() {
             let i = &simulation.info;
             let message = format!(
@@ -382,6 +410,28 @@ impl Simulation {
         simulation.record_stats(&initial)?;
         Ok(simulation)
     }
+}
+
+/// The DOFs pin regions hold when some hold only some components: each region's nodes, the
+/// components it names.
+pub(super) fn component_pins(
+    registration: &dyn cleave_registry::Backend,
+    discretization: &dyn Discretization,
+    pins: &[Region],
+    components: &[[bool; 3]],
+) -> Result<Vec<usize>, String> {
+    let mut dofs = Vec::new();
+    for (region, held) in pins.iter().zip(components) {
+        let resolved =
+            registration.resolve_pins(discretization, std::slice::from_ref(region)).map_err(|e| e.to_string())?;
+        if resolved.pinned_dofs.is_empty() && !resolved.extra_load.is_empty() {
+            return Err("a pin holding some components needs a backend with nodal pins".into());
+        }
+        dofs.extend(resolved.pinned_dofs.into_iter().filter(|d| held[d % 3]));
+    }
+    dofs.sort_unstable();
+    dofs.dedup();
+    Ok(dofs)
 }
 
 /// Whether an OBJ must bound a solid.

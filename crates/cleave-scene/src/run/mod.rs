@@ -165,6 +165,12 @@ pub struct Simulation {
     fracture: Option<FractureCheck>,
     /// Rigid fragments (`rigid_fragments` in the scene).
     rigid: Option<RigidHybrid>,
+    /// Each pin region's velocity (zero: held still).
+    pin_velocities: Vec<Vector3<Real>>,
+    /// The components each pin region holds.
+    pin_components: Vec<[bool; 3]>,
+    /// The DOFs of moving pins and their velocity [m/s], moved after every step.
+    moving_dofs: Vec<(usize, Real)>,
 }
 
 /// When stress fracture is checked.
@@ -429,7 +435,11 @@ impl Simulation {
         let build_error = |message: String| SceneError::Build { path: path.clone(), message };
         let surface = surface.ok_or_else(|| build_error("a cut body must render its own surface".into()))?;
         let d = self.discretization.as_ref();
-        let pins = self.registration.resolve_pins(d, &self.pins).map_err(|e| build_error(e.to_string()))?;
+        let mut pins = self.registration.resolve_pins(d, &self.pins).map_err(|e| build_error(e.to_string()))?;
+        if self.pin_components.iter().any(|c| *c != [true; 3]) {
+            pins.pinned_dofs = build::component_pins(self.registration.as_ref(), d, &self.pins, &self.pin_components)
+                .map_err(build_error)?;
+        }
         // The change renumbers the nodes: every rigid fragment returns (its nodes carry its
         // motion) and may go rigid again at a later check.
         if let Some(rigid) = self.rigid.as_mut() {
@@ -466,6 +476,7 @@ impl Simulation {
         self.cuts.nodes = d.num_nodes();
         self.cuts.elements = d.num_frames();
         self.info.dofs = 3 * d.num_nodes();
+        self.resolve_moving_pins()?;
         let time = self.integrator.time();
         if let Some(recorder) = self.recorder.as_mut() {
             let message = format!(
@@ -502,17 +513,31 @@ impl Simulation {
                 .map_err(step_error)?;
         }
         let mut report = self.integrator.step(self.discretization.as_ref()).map_err(step_error)?;
+        let d = self.discretization.as_ref();
+        // Moving pins: held through the step, then moved on at their velocity.
+        let mut edited = !self.moving_dofs.is_empty();
+        if edited {
+            let (moving, h) = (&self.moving_dofs, self.integrator.settings().time_step);
+            self.integrator.edit_state(d, |x, v| {
+                for &(dof, velocity) in moving {
+                    x[dof] += h * velocity;
+                    v[dof] = velocity;
+                }
+            });
+        }
         if let Some(rigid) = self.rigid.as_mut() {
             let surface = (&self.surface_points, self.surface_triangles.as_slice(), self.surface_piece.as_slice());
-            let d = self.discretization.as_ref();
-            if rigid.after_step(d, &mut self.integrator, &self.cuts.pieces, surface).map_err(step_error)? {
-                // The rigid nodes moved after the step: the energies of the state now.
-                let now = self.integrator.energies(d);
-                report.kinetic_energy = now.kinetic_energy;
-                report.elastic_energy = now.elastic_energy;
-                report.gravitational_energy = now.gravitational_energy;
-                report.penalty_energy = now.penalty_energy;
-            }
+            edited |= rigid.after_step(d, &mut self.integrator, &self.cuts.pieces, surface).map_err(step_error)?;
+        }
+        if edited {
+            // Nodes moved after the step: the energies of the state now.
+            let now = self.integrator.energies(d);
+            report.kinetic_energy = now.kinetic_energy;
+            report.elastic_energy = now.elastic_energy;
+            report.gravitational_energy = now.gravitational_energy;
+            report.penalty_energy = now.penalty_energy;
+        }
+        if self.rigid.is_some() {
             self.record_rigid_changes(counts_before)?;
         }
         if self.integrator.steps_taken().is_multiple_of(self.surface_every) {
@@ -535,6 +560,32 @@ impl Simulation {
         }
         self.prepare_next_cut();
         Ok(report)
+    }
+
+    /// The DOFs the moving pin regions hold now (after a topology change, again).
+    fn resolve_moving_pins(&mut self) -> Result<(), SceneError> {
+        self.moving_dofs.clear();
+        for ((region, velocity), held) in self.pins.iter().zip(&self.pin_velocities).zip(&self.pin_components) {
+            if *velocity == Vector3::zeros() {
+                continue;
+            }
+            let resolved = self
+                .registration
+                .resolve_pins(self.discretization.as_ref(), std::slice::from_ref(region))
+                .map_err(|e| SceneError::Build { path: self.path.clone(), message: e.to_string() })?;
+            if resolved.pinned_dofs.is_empty() {
+                return Err(SceneError::Build {
+                    path: self.path.clone(),
+                    message: format!(
+                        "a moving pin needs nodes to move, and the {} backend holds its pins weakly",
+                        self.info.backend
+                    ),
+                });
+            }
+            self.moving_dofs
+                .extend(resolved.pinned_dofs.iter().filter(|&&d| held[d % 3]).map(|&d| (d, velocity[d % 3])));
+        }
+        Ok(())
     }
 
     /// Records a `rigid` event when pieces went rigid or returned in this step.
