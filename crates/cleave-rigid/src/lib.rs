@@ -37,7 +37,8 @@ pub struct RigidFit {
 
 impl RigidFit {
     /// The rigid fit of `nodes` (node indices into `x` and `v`, three DOFs each) with lumped
-    /// masses `mass_diagonal` (one per DOF, as `Mass::diagonal`). `None` for a piece without
+    /// masses `mass_diagonal` (one per DOF, as `Mass::diagonal`; a node's three entries are
+    /// taken to be equal, as every nodal backend's are, and its x entry is read). `None` for a piece without
     /// mass or whose inertia is singular (all its nodes on one line).
     pub fn of(nodes: &[u32], mass_diagonal: &[Real], x: &[Real], v: &[Real]) -> Option<Self> {
         let at = |values: &[Real], n: u32| {
@@ -217,7 +218,7 @@ impl RigidWorld {
         world.gravity = to_glam(&settings.gravity);
         world.integration_parameters.dt = settings.time_step;
         // Fragments handed over while pressed together by the FE contact overlap a little;
-        // rapier's default push-out (up to 10 m/s) would read as an impact. At a tenth of the
+        // rapier's default push-out (up to 3 m/s) would read as an impact. At a tenth of the
         // return speed it separates them gently and stays below the impact rule.
         world.integration_parameters.normalized_max_corrective_velocity = 0.1 * settings.return_speed;
         for obstacle in obstacles {
@@ -356,63 +357,63 @@ impl RigidWorld {
         }
     }
 
-    /// Fragments about to hit an obstacle fast: a node that, moving on at its velocity (`x`,
-    /// `v`: the nodes' motion as last written) for the next `steps` steps, comes within
-    /// `margin` of an obstacle's plane while approaching it faster than `return_speed`; for a
-    /// mesh obstacle, the fragment's box swept over those steps and widened by `margin` meets
-    /// the mesh's box at such a speed. They are to return before the impact, so that the FE
+    /// Fragments about to hit an obstacle fast ([`RigidWorld::approaching`]), from the nodes'
+    /// motion as last written (`x`, `v`). They are to return before the impact, so that the FE
     /// model meets the approach as it would have without the rigid world (its contact sees
     /// only what is within its reach at the start of a step).
     pub fn about_to_hit(&self, x: &[Real], v: &[Real], margin: Real, steps: Real) -> Vec<usize> {
+        (0..self.fragments.len()).filter(|&i| self.approaching(&self.fragments[i].nodes, x, v, margin, steps)).collect()
+    }
+
+    /// Whether `nodes`, moving on at their velocities for `steps` steps, come within `margin` of
+    /// an obstacle's plane while approaching it faster than `return_speed`; for a mesh
+    /// obstacle (conservatively), whether their box swept over those steps and widened by
+    /// `margin` meets the mesh's box while some node moves faster than `return_speed`.
+    pub fn approaching(&self, nodes: &[u32], x: &[Real], v: &[Real], margin: Real, steps: Real) -> bool {
         let lookahead = steps * self.settings.time_step;
         let fast = self.settings.return_speed;
         let node = |values: &[Real], n: u32| {
             let k = 3 * n as usize;
             Vector3::new(values[k], values[k + 1], values[k + 2])
         };
-        (0..self.fragments.len())
-            .filter(|&i| {
-                let nodes = &self.fragments[i].nodes;
-                let near_plane = self.planes.iter().any(|(point, normal)| {
-                    nodes.iter().any(|&n| {
-                        let approach = -node(v, n).dot(normal);
-                        let gap = (node(x, n) - point.coords).dot(normal);
-                        approach > fast && gap - approach * lookahead < margin
-                    })
-                });
-                let near_mesh = !self.mesh_boxes.is_empty() && {
-                    let (mut lo, mut hi, mut speed) = (Vector3::repeat(Real::MAX), Vector3::repeat(Real::MIN), 0.0);
-                    for &n in nodes {
-                        let (p, u) = (node(x, n), node(v, n));
-                        let q = p + lookahead * u;
-                        lo = lo.inf(&p.inf(&q));
-                        hi = hi.sup(&p.sup(&q));
-                        speed = Real::max(speed, u.norm());
-                    }
-                    speed > fast
-                        && self
-                            .mesh_boxes
-                            .iter()
-                            .any(|(a, b)| (0..3).all(|k| lo[k] - margin <= b[k] && a[k] - margin <= hi[k]))
-                };
-                near_plane || near_mesh
+        let near_plane = self.planes.iter().any(|(point, normal)| {
+            nodes.iter().any(|&n| {
+                let approach = -node(v, n).dot(normal);
+                let gap = (node(x, n) - point.coords).dot(normal);
+                approach > fast && gap - approach * lookahead < margin
             })
-            .collect()
+        });
+        near_plane
+            || (!self.mesh_boxes.is_empty() && {
+                let (mut lo, mut hi, mut speed) = (Vector3::repeat(Real::MAX), Vector3::repeat(Real::MIN), 0.0);
+                for &n in nodes {
+                    let (p, u) = (node(x, n), node(v, n));
+                    let q = p + lookahead * u;
+                    lo = lo.inf(&p.inf(&q));
+                    hi = hi.sup(&p.sup(&q));
+                    speed = Real::max(speed, u.norm());
+                }
+                speed > fast
+                    && self
+                        .mesh_boxes
+                        .iter()
+                        .any(|(a, b)| (0..3).all(|k| lo[k] - margin <= b[k] && a[k] - margin <= hi[k]))
+            })
     }
 
-    /// The net contact impulse fragment `index` received in the last step beyond what held
-    /// it against gravity, `|J + M g h|` [N·s]: its velocity change by contact, less the
-    /// support of a resting body, times its mass. A net impulse, not a sum of magnitudes: a
-    /// chip wedged under a heavy fragment is pressed from above and from below, which cancels;
-    /// an impact does not. (Rapier's normal points from the pair's first collider to its
-    /// second, whose body receives the impulse along it.)
+    /// The net contact impulse fragment `index` received in the last step beyond what holds it
+    /// against gravity, `max(0, |J| − M |g| h)` [N·s]: at rest `J` is the support `−M g h`
+    /// (zero), in free fall there is none (zero), an impact exceeds it. A net impulse, not a
+    /// sum of magnitudes: a chip wedged under a heavy fragment is pressed from above and below,
+    /// which cancels. Normal impulses only (rapier's `total_impulse`); the normal points from
+    /// the pair's first collider to its second, whose body receives the impulse along it.
     fn contact_impulse(&self, index: usize) -> Real {
         let fragment = &self.fragments[index];
         let collider = fragment.collider;
         let net = self.world.narrow_phase.contact_pairs_with(collider).fold(DVec3::ZERO, |sum, pair| {
             if pair.collider2 == collider { sum + pair.total_impulse() } else { sum - pair.total_impulse() }
         });
-        (net + fragment.mass * self.settings.time_step * to_glam(&self.settings.gravity)).length()
+        (net.length() - fragment.mass * self.settings.time_step * self.settings.gravity.norm()).max(0.0)
     }
 
     /// Writes each fragment's rigid motion into its nodes: `x = c + R r`, `v = v_c + ω × (x − c)`.

@@ -103,6 +103,24 @@ impl VoxelMesh {
         faces
     }
 
+    /// Cube index → component of the cubes joined through faces that are not cut (what
+    /// `without_crumbs` compares a separation's outcome with).
+    fn piece_of_cubes_through_faces(&self) -> Vec<u32> {
+        let mut joined = UnionFind::new(self.num_cubes());
+        for (cube, &cell) in self.cells().iter().enumerate() {
+            for axis in 0..3 {
+                let mut next = cell;
+                next[axis] += 1;
+                if let Some(other) = self.cube_at(next)
+                    && self.cut_faces().binary_search(&CubeFace { cell, axis }).is_err()
+                {
+                    joined.union(cube, other);
+                }
+            }
+        }
+        (0..self.num_cubes()).map(|cube| joined.find(cube) as u32).collect()
+    }
+
     /// Cube index → piece index, and the number of pieces: cubes joined through shared nodes
     /// (what moves them together), numbered by their first cube. Cubes joined through a face
     /// that is not cut share its nodes; so do cubes that touch at one edge or corner only
@@ -291,7 +309,8 @@ impl VoxelMesh {
     /// [`MIN_FRAGMENT_CUBES`] cubes that was not that small before: the new faces touching such
     /// a piece are kept joined, until no such piece is left.
     fn without_crumbs(&self, mut faces: Vec<CubeFace>) -> Vec<CubeFace> {
-        let (before, _) = self.piece_of_cubes();
+        // Joined through faces, as the loop below judges the pieces after.
+        let before = self.piece_of_cubes_through_faces();
         let mut size_before = vec![0usize; self.num_cubes()];
         for &p in &before {
             size_before[p as usize] += 1;

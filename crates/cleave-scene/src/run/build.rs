@@ -78,6 +78,14 @@ impl Simulation {
                 *components
             })
             .collect();
+        for (index, (velocity, held)) in pin_velocities.iter().zip(&pin_components).enumerate() {
+            if let Some(axis) = (0..3).find(|&a| velocity[a] != 0.0 && !held[a]) {
+                return Err(build_error(format!(
+                    "pins[{index}] moves along {} but does not hold that component (components: {held:?})",
+                    ["x", "y", "z"][axis]
+                )));
+            }
+        }
         if let Some(bad) = pin_velocities.iter().find(|v| !v.iter().all(|c| c.is_finite())) {
             return Err(build_error(format!("a pin's velocity must be finite, got {bad:?}")));
         }

@@ -442,9 +442,7 @@ impl Simulation {
         }
         // The change renumbers the nodes: every rigid fragment returns (its nodes carry its
         // motion) and may go rigid again at a later check.
-        if let Some(rigid) = self.rigid.as_mut() {
-            rigid.return_all(pins.pinned_dofs.clone());
-        }
+        let returned = self.rigid.as_mut().map_or(0, |rigid| rigid.return_all(pins.pinned_dofs.clone()));
         let constraints = Constraints {
             pinned_dofs: pins.pinned_dofs,
             extra_load: pins.extra_load,
@@ -494,6 +492,13 @@ impl Simulation {
                 None => message,
             };
             recorder.event(time, kind, &message)?;
+            if returned > 0 {
+                recorder.event(
+                    time,
+                    "rigid",
+                    &format!("{returned} rigid fragments returned by the {kind}; 0 rigid now"),
+                )?;
+            }
         }
         Ok(())
     }

@@ -29,8 +29,10 @@ pub struct RigidCounts {
     pub to_rigid: usize,
     /// Fragments returned by an impact.
     pub by_impact: usize,
-    /// Fragments returned because a deformable piece came near (or a cut or fracture).
+    /// Fragments returned because a deformable piece came near.
     pub by_proximity: usize,
+    /// Fragments returned by a cut or a fracture.
+    pub by_change: usize,
     /// Fragments rigid now.
     pub rigid: usize,
 }
@@ -123,16 +125,21 @@ impl RigidHybrid {
 
     /// Before a topology change: every fragment returns (its nodes already carry its motion);
     /// the change's rebuild unpins them. `scene_pinned`: the scene's pins after the change.
-    pub(crate) fn return_all(&mut self, scene_pinned: Vec<usize>) {
-        self.counts.by_proximity += self.world.fragments().len();
+    /// Returns how many fragments returned.
+    pub(crate) fn return_all(&mut self, scene_pinned: Vec<usize>) -> usize {
+        let returned = self.world.fragments().len();
+        self.counts.by_change += returned;
         self.world.clear();
         self.scene_pinned = scene_pinned;
         self.fragment_of.clear();
         self.counts.rigid = 0;
+        returned
     }
 
-    /// Before the integrator's step: the rigid world steps (fragments hit hard enough return,
-    /// rolled back to before the step), and fragments near a deformable piece return.
+    /// Before the integrator's step: fragments about to hit an obstacle and fragments near a
+    /// deformable piece return (before the rigid world steps, so that nothing they would have
+    /// touched in that step keeps an impulse from them); then the rigid world steps, and
+    /// fragments hit hard enough return, rolled back to before the step.
     pub(crate) fn before_step(
         &mut self,
         body: &dyn Discretization,
@@ -143,28 +150,36 @@ impl RigidHybrid {
             return Ok(());
         }
         // Fragments about to hit an obstacle return two steps ahead (docs §2).
-        let ahead = self.world.about_to_hit(integrator.positions(), integrator.velocities(), self.rules.margin, 2.0);
+        let (x, v) = (integrator.positions(), integrator.velocities());
+        let ahead = self.world.about_to_hit(x, v, self.rules.margin, 2.0);
         for &i in ahead.iter().rev() {
             self.world.remove(i);
         }
-        let by_impact = ahead.len() + self.world.step().len();
-        self.counts.by_impact += by_impact;
-        let mut changed = by_impact > 0;
-        self.refresh_fragment_of(body.num_nodes());
-        // Proximity: the deformable pieces' boxes against each fragment's.
-        let x = integrator.positions();
-        let mut deformable = NearGrid::new(self.rules.margin);
-        for p in pieces.iter().filter(|p| p.nodes.first().is_some_and(|&n| self.fragment_of[n as usize] == u32::MAX)) {
-            deformable.insert(&p.nodes, x);
+        let mut changed = !ahead.is_empty();
+        // Proximity, until no returned fragment brings another near.
+        loop {
+            self.refresh_fragment_of(body.num_nodes());
+            let mut deformable = NearGrid::new(self.rules.margin);
+            for p in
+                pieces.iter().filter(|p| p.nodes.first().is_some_and(|&n| self.fragment_of[n as usize] == u32::MAX))
+            {
+                deformable.insert(&p.nodes, x);
+            }
+            let near: Vec<usize> = (0..self.world.fragments().len())
+                .filter(|&i| deformable.near(&self.world.fragments()[i].nodes, x))
+                .collect();
+            if near.is_empty() {
+                break;
+            }
+            for &i in near.iter().rev() {
+                self.world.remove(i);
+            }
+            self.counts.by_proximity += near.len();
+            changed = true;
         }
-        let near: Vec<usize> = (0..self.world.fragments().len())
-            .filter(|&i| deformable.near(&self.world.fragments()[i].nodes, x))
-            .collect();
-        for &i in near.iter().rev() {
-            self.world.remove(i);
-        }
-        self.counts.by_proximity += near.len();
-        changed |= !near.is_empty();
+        let hit = self.world.step().len();
+        self.counts.by_impact += ahead.len() + hit;
+        changed |= hit > 0;
         if changed {
             self.refresh_fragment_of(body.num_nodes());
             integrator.set_pinned_dofs(body, self.pinned_dofs())?;
@@ -216,6 +231,19 @@ impl RigidHybrid {
                 });
             if quiet { candidates.push(index) } else { deformable.insert(&piece.nodes, x) }
         }
+        // A candidate near a deformable piece, or about to hit an obstacle, stays deformable
+        // itself, which may bring others near: until none changes.
+        loop {
+            let (keep, stay): (Vec<usize>, Vec<usize>) = candidates.iter().partition(|&&i| {
+                !deformable.near(&pieces[i].nodes, x)
+                    && !self.world.approaching(&pieces[i].nodes, x, v, self.rules.margin, 2.0)
+            });
+            if stay.is_empty() {
+                break;
+            }
+            stay.iter().for_each(|&i| deformable.insert(&pieces[i].nodes, x));
+            candidates = keep;
+        }
         let (embedding, triangles, piece_of) = surface;
         let mut points = std::mem::take(&mut self.surface_points);
         if !candidates.is_empty() {
@@ -224,9 +252,6 @@ impl RigidHybrid {
         let mut added = false;
         let mut local_vertex = HashMap::new();
         for index in candidates {
-            if deformable.near(&pieces[index].nodes, x) {
-                continue;
-            }
             // The piece's own surface triangles, over its own vertices.
             local_vertex.clear();
             let (mut vertices, mut own) = (Vec::new(), Vec::new());
