@@ -47,6 +47,8 @@ pub(crate) struct RigidHybrid {
     /// Scratch for one piece's elastic energy.
     alone: Vec<Real>,
     alone_rotations: Vec<Matrix3<Real>>,
+    /// Scratch: the deformable nodes' grid of the proximity rule (run every step).
+    near_grid: NearGrid,
     /// Scratch for the surface points a fragment's collider is made of.
     surface_points: Vec<Point3<Real>>,
     pub(crate) counts: RigidCounts,
@@ -65,6 +67,12 @@ struct NearGrid {
 impl NearGrid {
     fn new(gap: Real) -> Self {
         Self { gap, cells: HashSet::default() }
+    }
+
+    /// Empties the grid and sets its cell size, keeping its allocation.
+    fn reset(&mut self, gap: Real) {
+        self.gap = gap;
+        self.cells.clear();
     }
 
     fn cell(&self, x: &[Real], node: u32) -> [i64; 3] {
@@ -97,6 +105,7 @@ impl RigidHybrid {
             alone: Vec::new(),
             alone_rotations: Vec::new(),
             surface_points: Vec::new(),
+            near_grid: NearGrid::new(1.0),
             counts: RigidCounts::default(),
         }
     }
@@ -159,14 +168,15 @@ impl RigidHybrid {
         // Proximity, until no returned fragment brings another near.
         loop {
             self.refresh_fragment_of(body.num_nodes());
-            let mut deformable = NearGrid::new(self.rules.margin);
+            let deformable = &mut self.near_grid;
+            deformable.reset(self.rules.margin);
             for p in
                 pieces.iter().filter(|p| p.nodes.first().is_some_and(|&n| self.fragment_of[n as usize] == u32::MAX))
             {
                 deformable.insert(&p.nodes, x);
             }
             let near: Vec<usize> = (0..self.world.fragments().len())
-                .filter(|&i| deformable.near(&self.world.fragments()[i].nodes, x))
+                .filter(|&i| self.near_grid.near(&self.world.fragments()[i].nodes, x))
                 .collect();
             if near.is_empty() {
                 break;
