@@ -125,7 +125,7 @@ impl VoxelMesh {
     /// (what moves them together), numbered by their first cube. Cubes joined through a face
     /// that is not cut share its nodes; so do cubes that touch at one edge or corner only
     /// (the voxelization leaves such contacts joined, and a piece is what they move as).
-    fn piece_of_cubes(&self) -> (Vec<u32>, usize) {
+    pub(crate) fn piece_of_cubes(&self) -> (Vec<u32>, usize) {
         let mut joined = UnionFind::new(self.num_cubes());
         let mut first_cube = vec![u32::MAX; self.num_nodes()];
         for (cube, nodes) in self.cube_nodes().iter().enumerate() {
@@ -372,7 +372,7 @@ impl Cuttable for VoxelMesh {
     fn surface(&self) -> Option<EmbeddedSurface> {
         let (piece_of, _) = self.piece_of_cubes();
         if let Some(input) = self.embedded_input() {
-            return Some(self.separated_surface(input, &piece_of));
+            return Some(self.separated_surface(input, &piece_of).0);
         }
         let mut surface = EmbeddedSurface::default();
         let mut vertex_of = std::collections::HashMap::new();

@@ -11,9 +11,11 @@
 //! let beam = VoxelMesh::from_box(material, Point3::origin(), 0.25, [16, 4, 4]).unwrap();
 //! ```
 
+mod closing;
 mod cut;
 pub mod mesh;
 pub mod stiffness;
 pub mod surface;
 
+pub use closing::{ClosingRefusal, ClosingReport};
 pub use mesh::{CubeFace, VoxelError, VoxelMesh};

@@ -258,7 +258,7 @@ impl VoxelMesh {
     /// (`Cuttable::surface`, docs/math/voxel-cutting.md §4).
     pub fn carry_surface(&mut self, surface: &cleave_geometry::TriangleMesh) -> Result<usize, String> {
         let h = self.h;
-        let input = crate::surface::EmbeddedInput::new(surface, h, |p| {
+        let input = crate::surface::EmbeddedInput::new(surface, self.origin, h, |p| {
             let local = (p - self.origin) / h;
             let base = [local.x.floor() as i32, local.y.floor() as i32, local.z.floor() as i32];
             (0..27).find_map(|k: i32| {

@@ -6,10 +6,11 @@
 //! group of joined triangles around it and embedded trilinearly in a cube of its group, and every
 //! loop of edges left open is capped by a polygon through its own vertices.
 
+use crate::closing::{Closer, ClosingRefusal, ClosingReport, ClosingVertex};
 use crate::mesh::VoxelMesh;
 use crate::stiffness::corner_offset;
-use cleave_core::{EmbeddedSurface, Point3, Real, Vector3};
-use cleave_geometry::{TriangleMesh, UnionFind};
+use cleave_core::{Discretization, EmbeddedSurface, Point3, Real, Vector3};
+use cleave_geometry::{InsideTester, TriangleMesh, UnionFind};
 use std::collections::{HashMap, HashSet};
 
 /// The input surface as the voxel mesh keeps it: rest vertices, triangles (no edge longer than
@@ -17,11 +18,18 @@ use std::collections::{HashMap, HashSet};
 /// share an edge.
 #[derive(Clone, Debug)]
 pub struct EmbeddedInput {
-    vertices: Vec<Point3<Real>>,
-    triangles: Vec<[u32; 3]>,
+    pub(crate) vertices: Vec<Point3<Real>>,
+    pub(crate) triangles: Vec<[u32; 3]>,
     owner: Vec<[i32; 3]>,
     /// (triangle, triangle, the shared edge's two vertices).
     neighbours: Vec<(u32, u32, [u32; 2])>,
+    /// Per vertex, the triangles around it and its corner in each (CSR by `around_offsets`).
+    around: Vec<(u32, u8)>,
+    around_offsets: Vec<u32>,
+    /// The triangles whose bounding box touches each cell (closed cells).
+    by_cell: HashMap<[i32; 3], Vec<u32>>,
+    /// Point containment for the faces no triangle crosses.
+    inside: std::sync::Arc<InsideTester>,
 }
 
 /// Splits every edge longer than `h` at its midpoint, in passes, each triangle by the number of
@@ -70,8 +78,14 @@ pub fn subdivide_to(mesh: &TriangleMesh, h: Real) -> TriangleMesh {
 /// surface (`taken`, undirected, smaller index first) is not cut, so no edge ends up in more
 /// than two triangles; the edges it makes are added to `taken`. A polygon whose projection has
 /// no such ear (a slit whose two sides coincide, a loop that crosses itself in projection) is
-/// clipped at any ear whose new edge is free, ignoring the plane, and fanned as a last resort.
-pub fn cap_loop(points: &[Point3<Real>], loop_: &[u32], taken: &mut HashSet<(u32, u32)>) -> Vec<[u32; 3]> {
+/// clipped at any ear whose new edge is free, ignoring the plane. What is left when no ear has a
+/// free new edge is returned second, to be fanned from a new vertex (every edge of that fan is
+/// new, so none ends up in more than two triangles).
+pub fn cap_loop(
+    points: &[Point3<Real>],
+    loop_: &[u32],
+    taken: &mut HashSet<(u32, u32)>,
+) -> (Vec<[u32; 3]>, Option<Vec<u32>>) {
     let p = |v: u32| points[v as usize];
     let mut normal = Vector3::zeros();
     for k in 0..loop_.len() {
@@ -106,9 +120,7 @@ pub fn cap_loop(points: &[Point3<Real>], loop_: &[u32], taken: &mut HashSet<(u32
         };
         let ear = (0..n).find(|&i| free(i) && geometric(i)).or_else(|| (0..n).find(|&i| free(i)));
         let Some(ear) = ear else {
-            // No ear with a free new edge: fan what is left from its first vertex.
-            out.extend((1..n - 1).map(|k| [polygon[0], polygon[k], polygon[k + 1]]));
-            return out;
+            return (out, Some(polygon));
         };
         let (a, b, c) = corners(ear);
         taken.insert(key(a, c));
@@ -116,7 +128,7 @@ pub fn cap_loop(points: &[Point3<Real>], loop_: &[u32], taken: &mut HashSet<(u32
         polygon.remove(ear);
     }
     out.push([polygon[0], polygon[1], polygon[2]]);
-    out
+    (out, None)
 }
 
 impl EmbeddedInput {
@@ -125,6 +137,7 @@ impl EmbeddedInput {
     /// no cube there, an error naming the triangle).
     pub fn new(
         mesh: &TriangleMesh,
+        origin: Point3<Real>,
         h: Real,
         cell_of: impl Fn(&Point3<Real>) -> Option<[i32; 3]>,
     ) -> Result<Self, String> {
@@ -154,7 +167,72 @@ impl EmbeddedInput {
         if let Some((&(a, b), &t)) = edges.iter().next() {
             return Err(format!("the surface is not closed: edge {a} → {b} of triangle {t} has no opposite edge"));
         }
-        Ok(Self { vertices: mesh.vertices, triangles: mesh.triangles, owner, neighbours })
+        let mut around_offsets = vec![0u32; mesh.vertices.len() + 1];
+        for t in &mesh.triangles {
+            for &v in t {
+                around_offsets[v as usize + 1] += 1;
+            }
+        }
+        for v in 0..mesh.vertices.len() {
+            around_offsets[v + 1] += around_offsets[v];
+        }
+        let mut around = vec![(0u32, 0u8); around_offsets[mesh.vertices.len()] as usize];
+        let mut fill = around_offsets.clone();
+        for (t, tri) in mesh.triangles.iter().enumerate() {
+            for (k, &v) in tri.iter().enumerate() {
+                around[fill[v as usize] as usize] = (t as u32, k as u8);
+                fill[v as usize] += 1;
+            }
+        }
+        let mut by_cell: HashMap<[i32; 3], Vec<u32>> = HashMap::new();
+        for (t, tri) in mesh.triangles.iter().enumerate() {
+            let cell = |p: &Point3<Real>, grow: Real| -> [i32; 3] {
+                std::array::from_fn(|a| ((p[a] - origin[a]) / h + grow).floor() as i32)
+            };
+            let (mut lo, mut hi) = ([i32::MAX; 3], [i32::MIN; 3]);
+            for &v in tri {
+                let (l, u) = (cell(&mesh.vertices[v as usize], -1e-9), cell(&mesh.vertices[v as usize], 1e-9));
+                for a in 0..3 {
+                    lo[a] = lo[a].min(l[a]);
+                    hi[a] = hi[a].max(u[a]);
+                }
+            }
+            // Cells are closed (the ±1e-9 above): a triangle on a face belongs to both cubes.
+            for x in lo[0]..=hi[0] {
+                for y in lo[1]..=hi[1] {
+                    for z in lo[2]..=hi[2] {
+                        by_cell.entry([x, y, z]).or_default().push(t as u32);
+                    }
+                }
+            }
+        }
+        let inside = InsideTester::new(&mesh).map_err(|e| format!("the carried surface: {e}"))?;
+        Ok(Self {
+            vertices: mesh.vertices,
+            triangles: mesh.triangles,
+            owner,
+            neighbours,
+            around,
+            around_offsets,
+            by_cell,
+            inside: std::sync::Arc::new(inside),
+        })
+    }
+
+    /// The triangles around input vertex `vertex`, each with the vertex's corner in it.
+    pub(crate) fn triangles_around(&self, vertex: u32) -> &[(u32, u8)] {
+        let v = vertex as usize;
+        &self.around[self.around_offsets[v] as usize..self.around_offsets[v + 1] as usize]
+    }
+
+    /// The triangles whose bounding box touches the closed cell `cell`.
+    pub(crate) fn triangles_in_cell(&self, cell: [i32; 3]) -> &[u32] {
+        self.by_cell.get(&cell).map_or(&[], Vec::as_slice)
+    }
+
+    /// Whether `p` is inside the surface.
+    pub(crate) fn contains(&self, p: &Point3<Real>) -> bool {
+        self.inside.contains(p)
     }
 
     /// Triangles after subdivision.
@@ -176,9 +254,17 @@ impl VoxelMesh {
         (self.cube_nodes()[cube], weights)
     }
 
+    /// How the carried surface of the current topology was closed (`None` without one): face
+    /// sides closed by the paper's polygons, refused ones by reason, loops capped after.
+    pub fn closing_report(&self) -> Option<ClosingReport> {
+        let input = self.embedded_input()?;
+        let (piece_of, _) = self.piece_of_cubes();
+        Some(self.separated_surface(input, &piece_of).1)
+    }
+
     /// The embedded input surface of the current topology: separated where the cubes under two
     /// triangles sharing an edge no longer share a node, every open loop capped (`on_cut`).
-    pub(crate) fn separated_surface(&self, input: &EmbeddedInput, piece_of: &[u32]) -> EmbeddedSurface {
+    pub(crate) fn separated_surface(&self, input: &EmbeddedInput, piece_of: &[u32]) -> (EmbeddedSurface, ClosingReport) {
         let cube: Vec<usize> =
             input.owner.iter().map(|c| self.cube_at(*c).expect("the owner cubes are the mesh's")).collect();
         let shares_node = |a: usize, b: usize| {
@@ -198,84 +284,241 @@ impl VoxelMesh {
         }
         // Slots around one vertex are united only through its fan; slots of different vertices
         // are never united, so a class is one copy of one vertex.
+        // Each class embedded in a cube of its own triangles: one that contains the vertex if any.
+        let h = self.cell_size();
+        let mut host: HashMap<usize, (usize, bool)> = HashMap::new();
+        for (t, tri) in input.triangles.iter().enumerate() {
+            let cell = self.cells()[cube[t]];
+            for (k, &v) in tri.iter().enumerate() {
+                let p = input.vertices[v as usize];
+                let inside = (0..3).all(|a| {
+                    let s = (p[a] - self.origin()[a]) / h - cell[a] as Real;
+                    (-1e-9..=1.0 + 1e-9).contains(&s)
+                });
+                let entry = host.entry(slots.find(3 * t + k)).or_insert((cube[t], inside));
+                if inside && !entry.1 {
+                    *entry = (cube[t], inside);
+                }
+            }
+        }
+        // One copy per vertex and set of nodes it moves with: two classes of a vertex embedded on
+        // the same nodes (a fan split by a crack that passes through it twice) coincide in every
+        // motion, so they are one vertex, not two at one place.
         let mut surface = EmbeddedSurface::default();
         let mut copy_of_class: HashMap<usize, u32> = HashMap::new();
+        let mut copy_of_key: HashMap<(u32, Vec<u32>), u32> = HashMap::new();
         for (t, tri) in input.triangles.iter().enumerate() {
             let mut ids = [0u32; 3];
             for (k, &v) in tri.iter().enumerate() {
                 let class = slots.find(3 * t + k);
                 ids[k] = *copy_of_class.entry(class).or_insert_with(|| {
                     let p = input.vertices[v as usize];
-                    surface.rest_vertices.push(p);
-                    (surface.rest_vertices.len() - 1) as u32
+                    let (nodes, weights) = self.trilinear_row(host[&class].0, &p);
+                    let mut support: Vec<u32> =
+                        nodes.iter().zip(&weights).filter(|(_, w)| w.abs() > 1e-9).map(|(&n, _)| n).collect();
+                    support.sort_unstable();
+                    *copy_of_key.entry((v, support)).or_insert_with(|| {
+                        surface.rest_vertices.push(p);
+                        surface.embedding.push_row(&nodes, &weights);
+                        (surface.rest_vertices.len() - 1) as u32
+                    })
                 });
             }
             surface.triangles.push(ids);
             surface.on_cut.push(false);
             surface.piece.push(piece_of[cube[t]]);
         }
-        // Each copy embedded in a cube of its own triangles: one that contains it if any.
-        let mut host: Vec<Option<(usize, bool)>> = vec![None; surface.rest_vertices.len()];
-        let h = self.cell_size();
-        for (t, ids) in surface.triangles.iter().enumerate() {
-            for &id in ids {
-                let p = surface.rest_vertices[id as usize];
-                let cell = self.cells()[cube[t]];
-                let inside = (0..3).all(|a| {
-                    let s = (p[a] - self.origin()[a]) / h - cell[a] as Real;
-                    (-1e-9..=1.0 + 1e-9).contains(&s)
-                });
-                match host[id as usize] {
-                    Some((_, true)) => {}
-                    Some((_, false)) if !inside => {}
-                    _ => host[id as usize] = Some((cube[t], inside)),
-                }
-            }
-        }
-        for (id, p) in surface.rest_vertices.iter().enumerate() {
-            let (c, _) = host[id].expect("every copy has a triangle");
-            let (nodes, weights) = self.trilinear_row(c, p);
-            surface.embedding.push_row(&nodes, &weights);
-        }
-        // Open edges: a directed edge whose reverse no triangle has.
-        let mut directed: HashMap<(u32, u32), usize> = HashMap::new();
-        for (t, ids) in surface.triangles.iter().enumerate() {
+        let report = self.close_faces(input, &cube, piece_of, &mut surface);
+        (surface, report)
+    }
+
+    /// Closes `surface` (the separated input triangles, in input order): each side of every
+    /// separated face by the paper's polygons (`closing.rs`), kept where it leaves every edge in
+    /// at most two triangles, once each way; then every loop of edges still open is capped.
+    fn close_faces(
+        &self,
+        input: &EmbeddedInput,
+        cube: &[usize],
+        piece_of: &[u32],
+        surface: &mut EmbeddedSurface,
+    ) -> ClosingReport {
+        let copies: Vec<[u32; 3]> = surface.triangles.clone();
+        let closer = Closer { mesh: self, input, triangle_cube: cube, triangle_copies: &copies };
+        let mut report = ClosingReport::default();
+        let mut refused: HashMap<ClosingRefusal, usize> = HashMap::new();
+        let mut directed: HashSet<(u32, u32)> = HashSet::new();
+        let mut uses: HashMap<(u32, u32), u8> = HashMap::new();
+        let input_triangles = surface.triangles.len();
+        for ids in &surface.triangles {
             for k in 0..3 {
-                directed.insert((ids[k], ids[(k + 1) % 3]), t);
+                let (a, b) = (ids[k], ids[(k + 1) % 3]);
+                directed.insert((a, b));
+                *uses.entry((a.min(b), a.max(b))).or_default() += 1;
             }
         }
-        let mut open: Vec<(u32, u32)> =
-            directed.keys().filter(|(a, b)| !directed.contains_key(&(*b, *a))).copied().collect();
-        open.sort_unstable();
-        let mut taken: HashSet<(u32, u32)> = directed.keys().map(|&(a, b)| (a.min(b), a.max(b))).collect();
-        let mut outgoing: HashMap<u32, Vec<u32>> = HashMap::new();
-        for &(a, b) in &open {
-            outgoing.entry(a).or_default().push(b);
+        let mut node_vertex: HashMap<u32, u32> = HashMap::new();
+        let rest = self.rest_dofs();
+        for &face in self.cut_faces() {
+            for near_is_lower in [true, false] {
+                let closing = match closer.close(face, near_is_lower) {
+                    Ok(closing) => closing,
+                    Err(why) => {
+                        *refused.entry(why).or_default() += 1;
+                        continue;
+                    }
+                };
+                if closing.is_empty() {
+                    continue;
+                }
+                let mut upper = face.cell;
+                upper[face.axis] += 1;
+                let near = self.cube_at(if near_is_lower { face.cell } else { upper }).expect("closed faces have cubes");
+                // Ids: new vertices for nodes get the next free indices, made only if kept.
+                let mut fresh: Vec<u32> = Vec::new();
+                let id = |w: ClosingVertex, fresh: &mut Vec<u32>| match w {
+                    ClosingVertex::Surface(x) => x,
+                    ClosingVertex::Node(n) => node_vertex.get(&n).copied().unwrap_or_else(|| {
+                        let at = fresh.iter().position(|&m| m == n).unwrap_or_else(|| {
+                            fresh.push(n);
+                            fresh.len() - 1
+                        });
+                        (surface.rest_vertices.len() + at) as u32
+                    }),
+                };
+                let triangles: Vec<[u32; 3]> = closing
+                    .iter()
+                    .map(|t| t.map(|w| id(w, &mut fresh)))
+                    .filter(|t| t[0] != t[1] && t[1] != t[2] && t[2] != t[0])
+                    .collect();
+                let mut batch_directed: HashSet<(u32, u32)> = HashSet::new();
+                let mut batch_uses: HashMap<(u32, u32), u8> = HashMap::new();
+                let mut conflicts: Vec<(u32, u32)> = Vec::new();
+                for t in &triangles {
+                    for k in 0..3 {
+                        let (a, b) = (t[k], t[(k + 1) % 3]);
+                        if directed.contains(&(a, b)) || !batch_directed.insert((a, b)) {
+                            conflicts.push((a.min(b), a.max(b)));
+                        }
+                        *batch_uses.entry((a.min(b), a.max(b))).or_default() += 1;
+                    }
+                }
+                conflicts.extend(batch_uses.iter().filter(|(e, n)| uses.get(*e).copied().unwrap_or(0) + **n > 2).map(|(e, _)| *e));
+                if !conflicts.is_empty() {
+                    // Only edges the surface closes already (input triangles on both sides): the
+                    // crack has not opened the surface here, and there is nothing to close.
+                    let closed_surface = |e: &(u32, u32)| {
+                        surface.triangles[..input_triangles].iter().filter(|t| t.contains(&e.0) && t.contains(&e.1)).count()
+                            == 2
+                    };
+                    if conflicts.iter().all(closed_surface) {
+                        report.face_sides_not_open += 1;
+                    } else {
+                        *refused.entry(ClosingRefusal::Manifold).or_default() += 1;
+                    }
+                    continue;
+                }
+                for &n in &fresh {
+                    let i = 3 * n as usize;
+                    node_vertex.insert(n, surface.rest_vertices.len() as u32);
+                    surface.rest_vertices.push(Point3::new(rest[i], rest[i + 1], rest[i + 2]));
+                    surface.embedding.push_row(&[n], &[1.0]);
+                }
+                for (e, n) in batch_uses {
+                    *uses.entry(e).or_default() += n;
+                }
+                directed.extend(batch_directed);
+                for t in triangles {
+                    surface.triangles.push(t);
+                    surface.on_cut.push(true);
+                    surface.piece.push(piece_of[near]);
+                }
+                report.face_sides_closed += 1;
+            }
         }
-        for &(a, b) in &open {
-            let Some(list) = outgoing.get_mut(&a) else { continue };
-            let Some(k) = list.iter().position(|&w| w == b) else { continue };
-            list.swap_remove(k);
-            let piece = surface.piece[directed[&(a, b)]];
-            // Walk the open edges from a → b back to a.
-            let mut walk = vec![a];
-            let mut at = b;
-            while at != a {
+        report.refused = refused.into_iter().collect();
+        report.refused.sort_unstable();
+        report.loops_capped = cap_open_loops(surface);
+        report
+    }
+}
+
+/// Adds a vertex at the mean of `polygon`'s vertices, embedded by the mean of their rows.
+fn add_centre(surface: &mut EmbeddedSurface, polygon: &[u32]) -> u32 {
+    let share = 1.0 / polygon.len() as Real;
+    let mut row: Vec<(u32, Real)> = Vec::new();
+    let mut point = Vector3::zeros();
+    for &v in polygon {
+        point += surface.rest_vertices[v as usize].coords * share;
+        let (nodes, weights) = surface.embedding.row(v as usize);
+        for (&n, &w) in nodes.iter().zip(weights) {
+            match row.iter_mut().find(|(m, _)| *m == n) {
+                Some(entry) => entry.1 += w * share,
+                None => row.push((n, w * share)),
+            }
+        }
+    }
+    let (nodes, weights): (Vec<u32>, Vec<Real>) = row.into_iter().unzip();
+    surface.embedding.push_row(&nodes, &weights);
+    surface.rest_vertices.push(Point3::from(point));
+    (surface.rest_vertices.len() - 1) as u32
+}
+
+/// Caps every loop of open edges of `surface` (directed edges whose reverse no triangle has) by
+/// a polygon through its own vertices (`cap_loop`); returns the number of loops capped.
+fn cap_open_loops(surface: &mut EmbeddedSurface) -> usize {
+    let mut capped = 0;
+    let mut directed: HashMap<(u32, u32), usize> = HashMap::new();
+    for (t, ids) in surface.triangles.iter().enumerate() {
+        for k in 0..3 {
+            directed.insert((ids[k], ids[(k + 1) % 3]), t);
+        }
+    }
+    let mut open: Vec<(u32, u32)> =
+        directed.keys().filter(|(a, b)| !directed.contains_key(&(*b, *a))).copied().collect();
+    open.sort_unstable();
+    let mut taken: HashSet<(u32, u32)> = directed.keys().map(|&(a, b)| (a.min(b), a.max(b))).collect();
+    let mut outgoing: HashMap<u32, Vec<u32>> = HashMap::new();
+    for &(a, b) in &open {
+        outgoing.entry(a).or_default().push(b);
+    }
+    for &(a, b) in &open {
+        let Some(list) = outgoing.get_mut(&a) else { continue };
+        let Some(k) = list.iter().position(|&w| w == b) else { continue };
+        list.swap_remove(k);
+        let piece = surface.piece[directed[&(a, b)]];
+        // Walk the open edges from a → b back to a; where the walk meets a vertex it has passed,
+        // the part since then is a simple loop of its own and is capped at once.
+        let mut walk = vec![a, b];
+        while walk.len() > 1 {
+            let at = *walk.last().expect("not empty");
+            if let Some(i) = walk[..walk.len() - 1].iter().position(|&w| w == at) {
+                let mut simple = walk.split_off(i);
+                simple.pop();
                 walk.push(at);
-                let Some(next) = outgoing.get_mut(&at).and_then(|l| l.pop()) else { break };
-                at = next;
-            }
-            if at != a || walk.len() < 3 {
+                if simple.len() >= 3 {
+                    // The cap runs the loop backwards: each open edge a → b gets its b → a.
+                    simple.reverse();
+                    let (mut triangles, rest) = cap_loop(&surface.rest_vertices, &simple, &mut taken);
+                    if let Some(polygon) = rest {
+                        let centre = add_centre(surface, &polygon);
+                        let n = polygon.len();
+                        triangles.extend((0..n).map(|k| [centre, polygon[k], polygon[(k + 1) % n]]));
+                    }
+                    for t in triangles {
+                        surface.triangles.push(t);
+                        surface.on_cut.push(true);
+                        surface.piece.push(piece);
+                    }
+                    capped += 1;
+                }
+                if walk.len() == 1 {
+                    break;
+                }
                 continue;
             }
-            // The cap runs the loop backwards: each open edge a → b gets its b → a.
-            walk.reverse();
-            for t in cap_loop(&surface.rest_vertices, &walk, &mut taken) {
-                surface.triangles.push(t);
-                surface.on_cut.push(true);
-                surface.piece.push(piece);
-            }
+            let Some(next) = outgoing.get_mut(&at).and_then(|l| l.pop()) else { break };
+            walk.push(next);
         }
-        surface
     }
+    capped
 }
