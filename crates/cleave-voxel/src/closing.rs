@@ -39,8 +39,6 @@ pub enum ClosingRefusal {
     Manifold,
 }
 
-
-
 /// What the surface's closing did: face sides closed by their own polygons, those refused (by
 /// reason), and the loops of open edges capped afterwards.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -122,7 +120,7 @@ impl Closer<'_> {
     }
 
     /// The closing triangles of `face` on the side of the cube below it (`near_is_lower`) or
-    /// above it, outward for that cube (docs/math/voxel-cutting.md §4, steps 3a–3e).
+    /// above it, outward for that cube (docs/math/voxel-cutting.md §4, steps 3a–3e; 3f is the caller's).
     pub fn close(&self, face: CubeFace, near_is_lower: bool) -> Result<Vec<[ClosingVertex; 3]>, ClosingRefusal> {
         let (mesh, input) = (self.mesh, self.input);
         let (h, origin, a) = (mesh.cell_size(), mesh.origin(), face.axis);
@@ -160,7 +158,9 @@ impl Closer<'_> {
             let near_group = match self.shared_nodes(cube, near).cmp(&self.shared_nodes(cube, far)) {
                 std::cmp::Ordering::Greater => true,
                 std::cmp::Ordering::Less => false,
-                std::cmp::Ordering::Equal => above(&Point3::from((p[0].coords + p[1].coords + p[2].coords) / 3.0)) == near_above,
+                std::cmp::Ordering::Equal => {
+                    above(&Point3::from((p[0].coords + p[1].coords + p[2].coords) / 3.0)) == near_above
+                }
             };
             let mut crossings: Vec<(Point3<Real>, [u32; 2], u32)> = Vec::with_capacity(2);
             for k in 0..3 {
@@ -405,7 +405,8 @@ impl Closer<'_> {
 /// Ear clipping of a counter-clockwise simple polygon in the plane; `None` if some step finds no
 /// ear (the polygon crosses itself).
 fn ear_clip(ring: &[(ClosingVertex, [Real; 2])]) -> Option<Vec<[ClosingVertex; 3]>> {
-    let cross = |o: [Real; 2], p: [Real; 2], q: [Real; 2]| (p[0] - o[0]) * (q[1] - o[1]) - (p[1] - o[1]) * (q[0] - o[0]);
+    let cross =
+        |o: [Real; 2], p: [Real; 2], q: [Real; 2]| (p[0] - o[0]) * (q[1] - o[1]) - (p[1] - o[1]) * (q[0] - o[0]);
     let scale: Real = ring.iter().map(|r| r.1[0].abs().max(r.1[1].abs())).fold(0.0, Real::max).max(1e-300);
     let tiny = 1e-14 * scale * scale;
     let mut polygon: Vec<usize> = (0..ring.len()).collect();

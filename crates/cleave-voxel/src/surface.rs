@@ -3,8 +3,9 @@
 //! large triangles are split at load so no edge exceeds the cube edge (§3.3), each triangle
 //! belongs to the cube its centroid lies in, two triangles sharing an edge stay joined while
 //! their cubes share a node (after a cut, cubes across it share none), each vertex is copied per
-//! group of joined triangles around it and embedded trilinearly in a cube of its group, and every
-//! loop of edges left open is capped by a polygon through its own vertices.
+//! group of joined triangles around it and embedded trilinearly in a cube of its group; each side
+//! of every separated face is closed by the paper's polygons (`closing.rs`), and every loop of
+//! edges still open is capped by a polygon through its own vertices.
 
 use crate::closing::{Closer, ClosingRefusal, ClosingReport, ClosingVertex};
 use crate::mesh::VoxelMesh;
@@ -264,7 +265,11 @@ impl VoxelMesh {
 
     /// The embedded input surface of the current topology: separated where the cubes under two
     /// triangles sharing an edge no longer share a node, every open loop capped (`on_cut`).
-    pub(crate) fn separated_surface(&self, input: &EmbeddedInput, piece_of: &[u32]) -> (EmbeddedSurface, ClosingReport) {
+    pub(crate) fn separated_surface(
+        &self,
+        input: &EmbeddedInput,
+        piece_of: &[u32],
+    ) -> (EmbeddedSurface, ClosingReport) {
         let cube: Vec<usize> =
             input.owner.iter().map(|c| self.cube_at(*c).expect("the owner cubes are the mesh's")).collect();
         let shares_node = |a: usize, b: usize| {
@@ -372,7 +377,8 @@ impl VoxelMesh {
                 }
                 let mut upper = face.cell;
                 upper[face.axis] += 1;
-                let near = self.cube_at(if near_is_lower { face.cell } else { upper }).expect("closed faces have cubes");
+                let near =
+                    self.cube_at(if near_is_lower { face.cell } else { upper }).expect("closed faces have cubes");
                 // Ids: new vertices for nodes get the next free indices, made only if kept.
                 let mut fresh: Vec<u32> = Vec::new();
                 let id = |w: ClosingVertex, fresh: &mut Vec<u32>| match w {
@@ -402,12 +408,17 @@ impl VoxelMesh {
                         *batch_uses.entry((a.min(b), a.max(b))).or_default() += 1;
                     }
                 }
-                conflicts.extend(batch_uses.iter().filter(|(e, n)| uses.get(*e).copied().unwrap_or(0) + **n > 2).map(|(e, _)| *e));
+                conflicts.extend(
+                    batch_uses.iter().filter(|(e, n)| uses.get(*e).copied().unwrap_or(0) + **n > 2).map(|(e, _)| *e),
+                );
                 if !conflicts.is_empty() {
                     // Only edges the surface closes already (input triangles on both sides): the
                     // crack has not opened the surface here, and there is nothing to close.
                     let closed_surface = |e: &(u32, u32)| {
-                        surface.triangles[..input_triangles].iter().filter(|t| t.contains(&e.0) && t.contains(&e.1)).count()
+                        surface.triangles[..input_triangles]
+                            .iter()
+                            .filter(|t| t.contains(&e.0) && t.contains(&e.1))
+                            .count()
                             == 2
                     };
                     if conflicts.iter().all(closed_surface) {

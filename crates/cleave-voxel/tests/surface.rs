@@ -1,6 +1,7 @@
 //! The surface a voxel body carries, separated along triangle edges where its cubes come apart
-//! and capped (mueller2004 §3.1; docs/math/voxel-cutting.md §4): every piece's surface is closed
-//! (each directed edge matched by its reverse) after planes, blades and random soups on the
+//! and closed (mueller2004 §3.1–3.2; docs/math/voxel-cutting.md §4): every piece's surface is
+//! closed (each directed edge matched by its reverse, also welded by position in a random
+//! deformation) after planes, blades and random soups on the
 //! bunny and a torus; an uncut body renders the input unchanged (the same triangles, each vertex
 //! where it was); no triangle is cut (every separated triangle is an input triangle).
 
