@@ -18,6 +18,8 @@ repeat or whose area is below 1e-14 m² count as zero-area triangles, and every 
 the remaining triangles must be in exactly two of them. The last frame is after all cuts, so an
 edge in four triangles (two coinciding sheets of a cut that ends inside the material) is bad too.
 Both counts are printed per failing piece and in total, and both must be 0.
+--expect-rigid-at-end: the last /events `rigid` event (the runner's count of hand-offs, "... N rigid
+now") leaves at least one rigid body: some pieces end the run on the rigid-body engine.
 --energy-after-last-cut PCT: E0 is /stats energy.total at the first step at or after the time of
 the last /events `cut` event; at no later step may the total energy exceed E0 + PCT/100 * |E0|.
 At the end, one line sums up what was checked.
@@ -32,6 +34,8 @@ def main() -> int:
     path = sys.argv[1]
     expect_rest = "--expect-rest" in sys.argv
     expect_cut = "--expect-cut" in sys.argv
+    expect_rigid = "--expect-rigid-at-end" in sys.argv
+    last_rigid = None  # the message of the last `rigid` event
     min_pieces = int(sys.argv[sys.argv.index("--min-pieces") + 1]) if "--min-pieces" in sys.argv else 2
     max_pieces = int(sys.argv[sys.argv.index("--max-pieces") + 1]) if "--max-pieces" in sys.argv else None
     strict_closed = "--strict-closed" in sys.argv
@@ -58,6 +62,8 @@ def main() -> int:
                     surfaces.append((message.log_time, data))
             elif channel.topic == "/stats":
                 stats.append(data)
+            elif channel.topic == "/events" and data["kind"] == "rigid":
+                last_rigid = data["message"]
             elif channel.topic == "/events" and data["kind"] in ("cut", "fracture"):
                 cuts += 1
                 cut_times.append(data["time"])
@@ -75,6 +81,13 @@ def main() -> int:
         name = "--strict-closed (last frame: exact weld, no zero-area triangles, every edge in two)"
         checked.append(name)
         if not check_strict_closed(last_surface):
+            failed.append(name)
+    if expect_rigid:
+        name = "--expect-rigid-at-end (the last `rigid` event leaves a rigid body)"
+        checked.append(name)
+        rigid_now = int(last_rigid.split("; ")[-1].split(" ")[0]) if last_rigid else 0
+        print(f"last rigid event: {last_rigid!r}")
+        if rigid_now < 1:
             failed.append(name)
     if energy_pct is not None:
         name = f"--energy-after-last-cut {energy_pct:g} %"

@@ -221,6 +221,10 @@ impl RigidWorld {
         // rapier's default push-out (up to 3 m/s) would read as an impact. At a tenth of the
         // return speed it separates them gently and stays below the impact rule.
         world.integration_parameters.normalized_max_corrective_velocity = 0.1 * settings.return_speed;
+        // A fragment's trimesh has many triangles within the prediction distance of the ground;
+        // merged into one manifold of a few points, the points kept are not the lowest, and a
+        // resting pile jitters and sinks (measured: 1.6 mm in 0.5 s on the shattered bunny).
+        world.integration_parameters.contact_clustering = false;
         for obstacle in obstacles {
             let (collider, point) = match obstacle {
                 Obstacle::Plane { point, normal, friction } => {

@@ -221,3 +221,69 @@ fn a_fast_approach_is_seen_two_steps_ahead_and_a_slow_one_not() {
     assert!(ahead(0.05, 3.0).is_empty(), "5 cm above: not yet");
     assert!(ahead(0.001, 0.2).is_empty(), "slower than the return speed");
 }
+
+/// A box of lumped nodes handed over resting on the ground (its bottom layer up to 0.2 mm into
+/// it, unevenly, as the FE contact leaves it) stays at rest there: it neither sinks nor jitters.
+#[test]
+fn a_fragment_at_rest_on_the_ground_stays_there() {
+    let h = 1.0 / 120.0;
+    let settings = WorldSettings {
+        gravity: Vector3::new(0.0, 0.0, -9.81),
+        time_step: h,
+        damping: 0.0,
+        friction: 0.5,
+        return_speed: 0.5,
+    };
+    let ground = Obstacle::Plane { point: Point3::origin(), normal: Vector3::z(), friction: 0.5 };
+    let mut world = RigidWorld::new(settings, &[ground]).unwrap();
+    // 5 × 5 × 5 nodes of a 0.1 m box, its lowest layer on the plane.
+    let (mut x, mut m) = (Vec::new(), Vec::new());
+    let n = 5;
+    let mut rng = Lcg(3);
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let dz = if k == 0 { 1e-4 * rng.next() - 1e-4 } else { 0.0 };
+                x.extend([0.025 * i as Real, 0.025 * j as Real, 0.025 * k as Real + dz]);
+                m.extend([2.0 / 125.0; 3]);
+            }
+        }
+    }
+    let mut v = vec![0.0; x.len()];
+    let id = |i: usize, j: usize, k: usize| (i + n * (j + n * k)) as u32;
+    let mut triangles = Vec::new();
+    for a in 0..n - 1 {
+        for b in 0..n - 1 {
+            let quads = [
+                [id(a, b, 0), id(a, b + 1, 0), id(a + 1, b + 1, 0), id(a + 1, b, 0)],
+                [id(a, b, n - 1), id(a + 1, b, n - 1), id(a + 1, b + 1, n - 1), id(a, b + 1, n - 1)],
+                [id(a, 0, b), id(a + 1, 0, b), id(a + 1, 0, b + 1), id(a, 0, b + 1)],
+                [id(a, n - 1, b), id(a, n - 1, b + 1), id(a + 1, n - 1, b + 1), id(a + 1, n - 1, b)],
+                [id(0, a, b), id(0, a, b + 1), id(0, a + 1, b + 1), id(0, a + 1, b)],
+                [id(n - 1, a, b), id(n - 1, a + 1, b), id(n - 1, a + 1, b + 1), id(n - 1, a, b + 1)],
+            ];
+            for q in quads {
+                triangles.push([q[0], q[1], q[2]]);
+                triangles.push([q[0], q[2], q[3]]);
+            }
+        }
+    }
+    let nodes: Vec<u32> = (0..(n * n * n) as u32).collect();
+    let vertices = points_of(&nodes, &x);
+    world
+        .add(nodes.clone(), &m, &x, &v, FragmentShape::Surface { vertices: &vertices, triangles: &triangles })
+        .unwrap();
+    let (mut lowest, mut fastest) = (Real::MAX, 0.0 as Real);
+    for step in 0..240 {
+        let returned = world.step();
+        assert!(returned.is_empty(), "returned at step {step}");
+        world.write_motion(&mut x, &mut v);
+        let z = (0..nodes.len()).map(|i| x[3 * i + 2]).fold(Real::MAX, Real::min);
+        let speed =
+            (0..nodes.len()).map(|i| Vector3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]).norm()).fold(0.0, Real::max);
+        lowest = lowest.min(z);
+        fastest = fastest.max(speed);
+    }
+    assert!(lowest > -5e-4, "sank to {lowest}");
+    assert!(fastest < 0.02, "jitters at {fastest} m/s");
+}

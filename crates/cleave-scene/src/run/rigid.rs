@@ -241,8 +241,13 @@ impl RigidHybrid {
                 });
             if quiet { candidates.push(index) } else { deformable.insert(&piece.nodes, x) }
         }
-        // A candidate near a deformable piece, or about to hit an obstacle, stays deformable
-        // itself, which may bring others near: until none changes.
+        // A candidate near a deformable piece or a rigid fragment, or about to hit an obstacle,
+        // stays deformable itself, which may bring others near: until none changes. (Rigid
+        // fragments resting on each other in the rigid world chatter: touching candidates go
+        // rigid as one body below, and none goes rigid next to a fragment.)
+        for f in self.world.fragments() {
+            deformable.insert(&f.nodes, x);
+        }
         loop {
             let (keep, stay): (Vec<usize>, Vec<usize>) = candidates.iter().partition(|&&i| {
                 !deformable.near(&pieces[i].nodes, x)
@@ -254,18 +259,40 @@ impl RigidHybrid {
             stay.iter().for_each(|&i| deformable.insert(&pieces[i].nodes, x));
             candidates = keep;
         }
+        // Candidates within 4 margins of each other: one rigid body (a resting pile moves as one).
+        let mut cluster_of = cleave_geometry::UnionFind::new(candidates.len());
+        let mut grid = NearGrid::new(4.0 * self.rules.margin);
+        for i in 0..candidates.len() {
+            grid.reset(4.0 * self.rules.margin);
+            grid.insert(&pieces[candidates[i]].nodes, x);
+            for j in i + 1..candidates.len() {
+                if grid.near(&pieces[candidates[j]].nodes, x) {
+                    cluster_of.union(i, j);
+                }
+            }
+        }
+        let mut clusters: Vec<Vec<usize>> = Vec::new();
+        let mut cluster_index: HashMap<usize, usize> = HashMap::new();
+        for i in 0..candidates.len() {
+            let r = cluster_of.find(i);
+            let c = *cluster_index.entry(r).or_insert_with(|| {
+                clusters.push(Vec::new());
+                clusters.len() - 1
+            });
+            clusters[c].push(candidates[i]);
+        }
         let (embedding, triangles, piece_of) = surface;
         let mut points = std::mem::take(&mut self.surface_points);
-        if !candidates.is_empty() {
+        if !clusters.is_empty() {
             embedding.evaluate(x, &mut points);
         }
         let mut added = false;
         let mut local_vertex = HashMap::new();
-        for index in candidates {
-            // The piece's own surface triangles, over its own vertices.
+        for cluster in clusters {
+            // The pieces' own surface triangles, over their own vertices.
             local_vertex.clear();
             let (mut vertices, mut own) = (Vec::new(), Vec::new());
-            for (t, _) in triangles.iter().zip(piece_of).filter(|&(_, &p)| p as usize == index) {
+            for (t, _) in triangles.iter().zip(piece_of).filter(|&(_, p)| cluster.contains(&(*p as usize))) {
                 own.push(t.map(|i| {
                     *local_vertex.entry(i).or_insert_with(|| {
                         vertices.push(points[i as usize]);
@@ -273,9 +300,12 @@ impl RigidHybrid {
                     })
                 }));
             }
+            let mut nodes: Vec<u32> = cluster.iter().flat_map(|&i| pieces[i].nodes.iter().copied()).collect();
+            nodes.sort_unstable();
+            nodes.dedup();
             let shape = FragmentShape::Surface { vertices: &vertices, triangles: &own };
-            if self.world.add(pieces[index].nodes.clone(), mass, x, v, shape).is_ok() {
-                self.counts.to_rigid += 1;
+            if self.world.add(nodes, mass, x, v, shape).is_ok() {
+                self.counts.to_rigid += cluster.len();
                 added = true;
             }
         }
