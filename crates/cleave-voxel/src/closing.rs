@@ -358,16 +358,20 @@ impl Closer<'_> {
                         let corner = (0..8).find(|&c| corner_offset(c) == offset).expect("a cube corner");
                         ClosingVertex::Node(mesh.cube_nodes()[near][corner])
                     }
-                    NodeKind::OnEdge(_) => {
+                    // When the vertex assigned has no copy on this side (the fracture line passes
+                    // on this side of it), the edge's other vertex, which then lies on the line.
+                    NodeKind::OnEdge([a, b]) => {
                         let segment = &segments[node.segment.expect("a segment's node")];
-                        let end = usize::from(segment.end == i);
-                        self.copy_near(segment.assigned[end], near, far)?
+                        let assigned = segment.assigned[usize::from(segment.end == i)];
+                        let other = if assigned == a { b } else { a };
+                        self.copy_near(assigned, near, far).or_else(|_| self.copy_near(other, near, far))?
                     }
                     NodeKind::OnBoundary(_) => {
                         let segment = &segments[node.segment.expect("a segment's node")];
                         let [x, y] = segment.assigned;
                         let distance = |w: u32| (input.vertices[w as usize] - node.point).norm();
-                        self.copy_near(if distance(y) < distance(x) { y } else { x }, near, far)?
+                        let (first, second) = if distance(y) < distance(x) { (y, x) } else { (x, y) };
+                        self.copy_near(first, near, far).or_else(|_| self.copy_near(second, near, far))?
                     }
                 };
                 let uv = match (node.kind, node.segment) {
