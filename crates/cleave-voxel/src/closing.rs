@@ -52,6 +52,9 @@ pub struct ClosingReport {
     pub refused: Vec<(ClosingRefusal, usize)>,
     /// Loops of open edges capped after the face sides were closed.
     pub loops_capped: usize,
+    /// Walks along open edges that did not come back to their start (none: every vertex has as
+    /// many open edges out as in), left open.
+    pub walks_left_open: usize,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -67,6 +70,7 @@ enum NodeKind {
 
 #[derive(Clone, Copy, Debug)]
 struct Node {
+    /// In the face's plane, relative to the square's first corner.
     uv: [Real; 2],
     point: Point3<Real>,
     kind: NodeKind,
@@ -162,7 +166,9 @@ impl Closer<'_> {
                     above(&Point3::from((p[0].coords + p[1].coords + p[2].coords) / 3.0)) == near_above
                 }
             };
-            let mut crossings: Vec<(Point3<Real>, [u32; 2], u32)> = Vec::with_capacity(2);
+            // Exactly two edges change side (the sides are booleans, not all equal).
+            let mut crossings = [(Point3::origin(), [0u32; 2], 0u32); 2];
+            let mut found = 0;
             for k in 0..3 {
                 let (i, j) = (k, (k + 1) % 3);
                 if side[i] == side[j] {
@@ -177,9 +183,11 @@ impl Closer<'_> {
                 // one of the far side at the vertex before it.
                 let on_near = |x: usize| side[x] == near_above;
                 let assigned = if near_group != on_near(lo) { ids[lo] } else { ids[hi] };
-                crossings.push((q, [ids[lo], ids[hi]], assigned));
+                crossings[found] = (q, [ids[lo], ids[hi]], assigned);
+                found += 1;
             }
             let normal = (p[1] - p[0]).cross(&(p[2] - p[0]));
+            debug_assert_eq!(found, 2);
             let (mut s, mut e) = (crossings[0], crossings[1]);
             if normal.cross(&(e.0 - s.0)).dot(&outward) < 0.0 {
                 std::mem::swap(&mut s, &mut e);
@@ -225,7 +233,13 @@ impl Closer<'_> {
                     None => (crossing.0, NodeKind::OnEdge(crossing.1)),
                     Some(k) => (point, NodeKind::OnBoundary(perimeter(point[u], point[v], k))),
                 };
-                nodes.push(Node { uv: [point[u], point[v]], point, kind, segment: Some(segment), next: None });
+                nodes.push(Node {
+                    uv: [point[u] - u0, point[v] - v0],
+                    point,
+                    kind,
+                    segment: Some(segment),
+                    next: None,
+                });
                 nodes.len() - 1
             };
             let start = end_node(t0, &s, enter);
@@ -259,7 +273,13 @@ impl Closer<'_> {
             point[a] = plane;
             point[u] = u0 + cu as Real * h;
             point[v] = v0 + cv as Real * h;
-            nodes.push(Node { uv: [point[u], point[v]], point, kind: NodeKind::Corner(k), segment: None, next: None });
+            nodes.push(Node {
+                uv: [point[u] - u0, point[v] - v0],
+                point,
+                kind: NodeKind::Corner(k),
+                segment: None,
+                next: None,
+            });
             nodes.len() - 1
         };
         let mut boundary: Vec<(Real, usize)> = nodes
@@ -273,7 +293,7 @@ impl Closer<'_> {
         boundary.sort_by(|x, y| x.0.total_cmp(&y.0));
         if boundary.is_empty() {
             // No segment reaches the square's edges: the corners are all inside or all outside.
-            let mut probe = nodes.first().map_or(Point3::origin(), |n| n.point);
+            let mut probe = Point3::origin();
             probe[a] = plane;
             probe[u] = u0 + 1e-6 * h;
             probe[v] = v0 + 1.3e-6 * h;
@@ -400,19 +420,19 @@ impl Closer<'_> {
             if distinct.windows(2).any(|w| w[0] == w[1]) {
                 return Err(ClosingRefusal::Pinch);
             }
-            triangles.extend(ear_clip(&ring).ok_or(ClosingRefusal::Ears)?);
+            triangles.extend(ear_clip(&ring, h).ok_or(ClosingRefusal::Ears)?);
         }
         Ok(triangles)
     }
 }
 
-/// Ear clipping of a counter-clockwise simple polygon in the plane; `None` if some step finds no
-/// ear (the polygon crosses itself).
-fn ear_clip(ring: &[(ClosingVertex, [Real; 2])]) -> Option<Vec<[ClosingVertex; 3]>> {
+/// Ear clipping of a counter-clockwise simple polygon in the plane of a face of edge `h` (points
+/// relative to its corner); `None` if some step finds no ear (the polygon crosses itself).
+fn ear_clip(ring: &[(ClosingVertex, [Real; 2])], h: Real) -> Option<Vec<[ClosingVertex; 3]>> {
     let cross =
         |o: [Real; 2], p: [Real; 2], q: [Real; 2]| (p[0] - o[0]) * (q[1] - o[1]) - (p[1] - o[1]) * (q[0] - o[0]);
-    let scale: Real = ring.iter().map(|r| r.1[0].abs().max(r.1[1].abs())).fold(0.0, Real::max).max(1e-300);
-    let tiny = 1e-14 * scale * scale;
+    // The points are relative to the square's corner, so the tolerance is the face's.
+    let tiny = 1e-14 * h * h;
     let mut polygon: Vec<usize> = (0..ring.len()).collect();
     let mut out = Vec::with_capacity(ring.len());
     while polygon.len() > 3 {

@@ -353,7 +353,6 @@ impl VoxelMesh {
         let mut refused: HashMap<ClosingRefusal, usize> = HashMap::new();
         let mut directed: HashSet<(u32, u32)> = HashSet::new();
         let mut uses: HashMap<(u32, u32), u8> = HashMap::new();
-        let input_triangles = surface.triangles.len();
         for ids in &surface.triangles {
             for k in 0..3 {
                 let (a, b) = (ids[k], ids[(k + 1) % 3]);
@@ -361,6 +360,7 @@ impl VoxelMesh {
                 *uses.entry((a.min(b), a.max(b))).or_default() += 1;
             }
         }
+        let input_uses = uses.clone();
         let mut node_vertex: HashMap<u32, u32> = HashMap::new();
         let rest = self.rest_dofs();
         for &face in self.cut_faces() {
@@ -414,13 +414,7 @@ impl VoxelMesh {
                 if !conflicts.is_empty() {
                     // Only edges the surface closes already (input triangles on both sides): the
                     // crack has not opened the surface here, and there is nothing to close.
-                    let closed_surface = |e: &(u32, u32)| {
-                        surface.triangles[..input_triangles]
-                            .iter()
-                            .filter(|t| t.contains(&e.0) && t.contains(&e.1))
-                            .count()
-                            == 2
-                    };
+                    let closed_surface = |e: &(u32, u32)| input_uses.get(e) == Some(&2);
                     if conflicts.iter().all(closed_surface) {
                         report.face_sides_not_open += 1;
                     } else {
@@ -448,7 +442,7 @@ impl VoxelMesh {
         }
         report.refused = refused.into_iter().collect();
         report.refused.sort_unstable();
-        report.loops_capped = cap_open_loops(surface);
+        (report.loops_capped, report.walks_left_open) = cap_open_loops(surface);
         report
     }
 }
@@ -475,9 +469,10 @@ fn add_centre(surface: &mut EmbeddedSurface, polygon: &[u32]) -> u32 {
 }
 
 /// Caps every loop of open edges of `surface` (directed edges whose reverse no triangle has) by
-/// a polygon through its own vertices (`cap_loop`); returns the number of loops capped.
-fn cap_open_loops(surface: &mut EmbeddedSurface) -> usize {
-    let mut capped = 0;
+/// a polygon through its own vertices (`cap_loop`); returns the number of loops capped and of
+/// walks that found no way back (none, as every vertex has as many open edges out as in).
+fn cap_open_loops(surface: &mut EmbeddedSurface) -> (usize, usize) {
+    let (mut capped, mut stuck) = (0, 0);
     let mut directed: HashMap<(u32, u32), usize> = HashMap::new();
     for (t, ids) in surface.triangles.iter().enumerate() {
         for k in 0..3 {
@@ -527,9 +522,12 @@ fn cap_open_loops(surface: &mut EmbeddedSurface) -> usize {
                 }
                 continue;
             }
-            let Some(next) = outgoing.get_mut(&at).and_then(|l| l.pop()) else { break };
+            let Some(next) = outgoing.get_mut(&at).and_then(|l| l.pop()) else {
+                stuck += 1;
+                break;
+            };
             walk.push(next);
         }
     }
-    capped
+    (capped, stuck)
 }

@@ -99,6 +99,7 @@ fn check_closed(mesh: &mut VoxelMesh, label: &str) -> EmbeddedSurface {
     );
     assert_eq!(open, 0, "{label}");
     assert_eq!((degenerate, bad_edges), (0, 0), "{label}: welded by position");
+    assert_eq!(report.walks_left_open, 0, "{label}");
     // The paper's own polygons close at least two thirds of the face sides that need closing
     // (measured: 85–100 % on the bunny, 74–95 % on the coarse torus); loops capped after do the
     // rest.
@@ -235,5 +236,59 @@ fn every_piece_stays_closed_after_random_breaks_and_cubes_torn_out() {
         let (broken, _) = mesh.separate_faces(&faces).unwrap();
         mesh = broken;
         check_closed(&mut mesh, &format!("break {round} at {cell:?}"));
+    }
+}
+
+/// A box cut through by a plane across its long axis: every exposed face side is closed by the
+/// paper's polygons (none refused, no loop left for the caps), each outward for its own piece:
+/// the closing surfaces' area vectors sum, per piece, to the box's cross-section `Ly·Lz` along
+/// the cut's normal, pointing out of the piece (Stokes: any surface spanning the rim has the area
+/// vector the rim encloses, and the rim lies on the box's sides, which project onto the
+/// section's edges), with the sign of the piece's side. A face side closed inward would change
+/// the sum by two face areas.
+#[test]
+fn a_box_cut_across_is_closed_face_by_face_outward() {
+    let (lo, hi) = (Point3::new(0.0031, 0.0017, 0.0023), Point3::new(0.0913, 0.0437, 0.0379));
+    let corner = |i: usize| Point3::new([lo.x, hi.x][i & 1], [lo.y, hi.y][(i >> 1) & 1], [lo.z, hi.z][i >> 2]);
+    let vertices: Vec<Point3<Real>> = (0..8).map(corner).collect();
+    let triangles = vec![
+        [0, 2, 3],
+        [0, 3, 1],
+        [4, 5, 7],
+        [4, 7, 6],
+        [0, 1, 5],
+        [0, 5, 4],
+        [2, 6, 7],
+        [2, 7, 3],
+        [0, 4, 6],
+        [0, 6, 2],
+        [1, 3, 7],
+        [1, 7, 5],
+    ];
+    let input = TriangleMesh::new(vertices, triangles);
+    let mut mesh = voxel_body(&input, 0.01);
+    let cut_x = 0.5 * (lo.x + hi.x);
+    mesh.cut(&CutSurface::Plane { point: Point3::new(cut_x, 0.0, 0.0), normal: Vector3::x() }).unwrap();
+    let surface = check_closed(&mut mesh, "box across");
+    let report = mesh.closing_report().unwrap();
+    assert!(report.refused.is_empty(), "{report:?}");
+    assert_eq!((report.loops_capped, report.walks_left_open, report.face_sides_not_open), (0, 0, 0), "{report:?}");
+    assert_eq!(report.face_sides_closed, 2 * mesh.cut_faces().len(), "{report:?}");
+    let section = (hi.y - lo.y) * (hi.z - lo.z);
+    let pieces = mesh.pieces().len();
+    assert_eq!(pieces, 2);
+    for piece in 0..pieces as u32 {
+        let (mut area, mut x_sum, mut count) = (Vector3::zeros(), 0.0, 0);
+        for (t, ids) in surface.triangles.iter().enumerate().filter(|(t, _)| surface.piece[*t] == piece) {
+            let [a, b, c] = ids.map(|v| surface.rest_vertices[v as usize]);
+            if surface.on_cut[t] {
+                area += 0.5 * (b - a).cross(&(c - a));
+            } else {
+                x_sum += a.x + b.x + c.x;
+                count += 3;
+            }
+        }
+        let outward = if x_sum / (count as Real) < cut_x { 1.0 } else { -1.0 };
+        assert!((area.x - outward * section).abs() < 1e-9 * section, "piece {piece}: {area:?} against ±{section}");
     }
 }

@@ -273,6 +273,8 @@ impl RigidHybrid {
         }
         let mut clusters: Vec<Vec<usize>> = Vec::new();
         let mut cluster_index: HashMap<usize, usize> = HashMap::new();
+        // Per piece, its cluster (u32::MAX: none).
+        let mut piece_cluster = vec![u32::MAX; pieces.len()];
         for i in 0..candidates.len() {
             let r = cluster_of.find(i);
             let c = *cluster_index.entry(r).or_insert_with(|| {
@@ -280,6 +282,7 @@ impl RigidHybrid {
                 clusters.len() - 1
             });
             clusters[c].push(candidates[i]);
+            piece_cluster[candidates[i]] = c as u32;
         }
         let (embedding, triangles, piece_of) = surface;
         let mut points = std::mem::take(&mut self.surface_points);
@@ -288,11 +291,11 @@ impl RigidHybrid {
         }
         let mut added = false;
         let mut local_vertex = HashMap::new();
-        for cluster in clusters {
+        for (c, cluster) in clusters.iter().enumerate() {
             // The pieces' own surface triangles, over their own vertices.
             local_vertex.clear();
             let (mut vertices, mut own) = (Vec::new(), Vec::new());
-            for (t, _) in triangles.iter().zip(piece_of).filter(|&(_, p)| cluster.contains(&(*p as usize))) {
+            for (t, _) in triangles.iter().zip(piece_of).filter(|&(_, &p)| piece_cluster[p as usize] == c as u32) {
                 own.push(t.map(|i| {
                     *local_vertex.entry(i).or_insert_with(|| {
                         vertices.push(points[i as usize]);
