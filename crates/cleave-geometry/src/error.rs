@@ -276,6 +276,16 @@ pub enum GeometryError {
         /// The frame scale.
         scale: f64,
     },
+    /// A moment vector does not have one entry per monomial of its degree.
+    #[error("{got} moments given where degree {degree} has {expected}")]
+    MomentCount {
+        /// The degree the moments are said to have.
+        degree: usize,
+        /// Monomials of that degree, `(d+1)(d+2)(d+3)/6`.
+        expected: usize,
+        /// Moments given.
+        got: usize,
+    },
     /// The requested moment degree exceeds the supported maximum.
     #[error("moment degree {degree} exceeds the supported maximum {limit}")]
     MomentDegreeTooHigh {

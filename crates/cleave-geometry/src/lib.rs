@@ -60,8 +60,8 @@ pub use merge::{MergeReport, merge_small_elements};
 pub use mesh::TriangleMesh;
 pub use moments::{
     Frame, MAX_MOMENT_DEGREE, element_frame, element_moments, element_moments_from_faces, element_volume_centroid,
-    face_area_normal_centroid, face_moments, monomial_exponents, monomial_index, num_monomials, try_element_moments,
-    try_element_moments_from_faces, try_face_moments,
+    face_area_normal_centroid, face_moments, monomial_exponents, monomial_index, num_monomials, shift_moments,
+    try_element_moments, try_element_moments_from_faces, try_face_moments,
 };
 pub use overlap::triangle_aabb_overlap;
 pub use poly_validate::PolyMeshStats;

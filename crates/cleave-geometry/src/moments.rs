@@ -87,6 +87,60 @@ pub fn monomial_index(e: [u32; 3]) -> usize {
     usize::try_from(index).unwrap_or(usize::MAX)
 }
 
+/// The moments of one region (an element's or a face's, any measure) in frame `to`, from its
+/// moments in frame `from`, every monomial of total degree ≤ `max_degree`, into `out`. With
+/// `ξ_to = o + r ξ_from`, `o = (c_from − c_to)/s_to`, `r = s_from/s_to`, each monomial expands
+/// per axis by the binomial theorem (`docs/math/polyhedral-integration.md` §6):
+/// `M_to[β] = Σ_{k ≤ β} Π_a C(β_a, k_a) o_a^(β_a − k_a) r^(k_a) M_from[k]`. No integration: a
+/// child element or face reuses what its parent stored. Errors for an invalid frame, a degree
+/// above [`MAX_MOMENT_DEGREE`] or a moment count that is not the degree's.
+pub fn shift_moments(
+    moments: &[f64],
+    from: &Frame,
+    to: &Frame,
+    max_degree: usize,
+    out: &mut Vec<f64>,
+) -> Result<(), GeometryError> {
+    check_degree(max_degree)?;
+    from.validate()?;
+    to.validate()?;
+    let count = num_monomials(max_degree);
+    if moments.len() != count {
+        return Err(GeometryError::MomentCount { degree: max_degree, expected: count, got: moments.len() });
+    }
+    let o = (from.center - to.center) / to.scale;
+    let r = from.scale / to.scale;
+    // Per axis, the coefficient of ξ_from^k in (o + r ξ_from)^n: C(n, k) o^(n−k) r^k.
+    let d = max_degree;
+    let mut axis = vec![0.0; 3 * (d + 1) * (d + 1)];
+    for a in 0..3 {
+        for n in 0..=d {
+            let mut binomial = 1.0;
+            for k in 0..=n {
+                axis[(a * (d + 1) + n) * (d + 1) + k] = binomial * o[a].powi((n - k) as i32) * r.powi(k as i32);
+                binomial = binomial * (n - k) as f64 / (k + 1) as f64;
+            }
+        }
+    }
+    let exponents = monomial_exponents(max_degree);
+    out.clear();
+    out.resize(count, 0.0);
+    for (i, beta) in exponents.iter().enumerate() {
+        let coefficient = |a: usize, k: u32| axis[(a * (d + 1) + beta[a] as usize) * (d + 1) + k as usize];
+        let mut sum = 0.0;
+        for kx in 0..=beta[0] {
+            for ky in 0..=beta[1] {
+                for kz in 0..=beta[2] {
+                    let c = coefficient(0, kx) * coefficient(1, ky) * coefficient(2, kz);
+                    sum += c * moments[monomial_index([kx, ky, kz])];
+                }
+            }
+        }
+        out[i] = sum;
+    }
+    Ok(())
+}
+
 /// Index arithmetic shared by the recursions: for monomial `i`, its degree and the index of
 /// `α − e_k` for the coordinates `k` with `α_k > 0`.
 struct MonomialTable {

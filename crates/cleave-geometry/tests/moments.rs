@@ -9,7 +9,7 @@ use std::collections::HashMap;
 use cleave_geometry::{
     Frame, GeometryError, MAX_MOMENT_DEGREE, PolyFace, PolyhedralMesh, element_moments, element_moments_from_faces,
     element_volume_centroid, face_area_normal_centroid, face_moments, monomial_exponents, monomial_index,
-    try_element_moments, try_face_moments,
+    shift_moments, try_element_moments, try_face_moments,
 };
 use common::Rng;
 use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
@@ -824,4 +824,42 @@ fn bad_queries_return_errors_or_nan_without_panicking() {
             let _ = face_area_normal_centroid(&mesh, f);
         }
     }
+}
+
+/// Moments moved to another frame by `shift_moments` (the binomial map, no integration) equal
+/// the moments integrated afresh in that frame, for a rotated non-convex element and each of
+/// its faces, to a child's frame (half the scale, off centre) and back to a frame twice as
+/// large; a wrong sign of the offset or power of the ratio misses by O(1).
+#[test]
+fn shifted_moments_equal_moments_integrated_in_the_new_frame() {
+    let rotation = Rotation3::from_euler_angles(0.3, -0.7, 1.1).into_inner();
+    let (mesh, _) = notched_cube([0.35, 0.5, 0.4], 0.8, &rotation, Vector3::new(0.2, -0.4, 0.9));
+    let degree = 5;
+    let parent = cleave_geometry::element_frame(&mesh, 0);
+    let child =
+        Frame { center: parent.center + Vector3::new(0.3, -0.2, 0.1) * parent.scale, scale: 0.5 * parent.scale };
+    let wide = Frame { center: parent.center - Vector3::new(0.1, 0.4, -0.2) * parent.scale, scale: 2.0 * parent.scale };
+    let (mut from, mut fresh, mut shifted) = (Vec::new(), Vec::new(), Vec::new());
+    let compare = |fresh: &[f64], shifted: &[f64], what: &str| {
+        let size = fresh.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let worst = fresh.iter().zip(shifted).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(worst <= 1e-12 * size, "{what}: {worst:e} of {size:e}");
+    };
+    for to in [child, wide] {
+        element_moments(&mesh, 0, &parent, degree, &mut from);
+        element_moments(&mesh, 0, &to, degree, &mut fresh);
+        shift_moments(&from, &parent, &to, degree, &mut shifted).unwrap();
+        compare(&fresh, &shifted, "element");
+        for f in 0..mesh.faces.len() {
+            face_moments(&mesh, f, &parent, degree, &mut from);
+            face_moments(&mesh, f, &to, degree, &mut fresh);
+            shift_moments(&from, &parent, &to, degree, &mut shifted).unwrap();
+            compare(&fresh, &shifted, &format!("face {f}"));
+        }
+    }
+    // Bad input is an error, not a panic.
+    let bad = Frame { center: parent.center, scale: 0.0 };
+    assert!(shift_moments(&from, &parent, &bad, degree, &mut shifted).is_err());
+    assert!(shift_moments(&from[1..], &parent, &child, degree, &mut shifted).is_err());
+    assert!(shift_moments(&from, &parent, &child, MAX_MOMENT_DEGREE + 1, &mut shifted).is_err());
 }
