@@ -97,6 +97,30 @@ impl ElementBasis {
     }
 }
 
+/// The exact restriction of a parent element's polynomial to a child's basis (a child of a split or
+/// refinement, lying inside the parent): `R` with `d_child = R d_parent` for each displacement
+/// component, so that `Σ d_child,i ψ^child_i = Σ d_parent,i ψ^parent_i` everywhere
+/// (docs/math/dg.md §12). With `ξ_parent = o + r ξ_child` the parent's monomials are `E` times the
+/// child's (`shifted_monomial`), and `R = (A_parent E A_child⁻¹)ᵀ`. No integration; `None` if the
+/// child's coefficient matrix is singular (it never is for a basis `ElementBasis::new` made).
+pub fn restriction(parent: &ElementBasis, child: &ElementBasis, degree: usize) -> Option<DMatrix<Real>> {
+    let exps = exponents(degree);
+    let n = exps.len();
+    let o = (child.frame.center - parent.frame.center) / parent.frame.scale;
+    let r = child.frame.scale / parent.frame.scale;
+    let mut e = DMatrix::zeros(n, n);
+    let mut row = vec![0.0; n];
+    for (beta_index, beta) in exps.iter().enumerate() {
+        shifted_monomial(*beta, &o, r, degree, &mut row);
+        for (k, value) in row.iter().enumerate() {
+            e[(beta_index, k)] = *value;
+        }
+    }
+    // A_child is lower triangular: its inverse is the Cholesky factor, recovered by a solve.
+    let child_inverse = child.a.clone().try_inverse()?;
+    Some((&parent.a * e * child_inverse).transpose())
+}
+
 /// Sum of exponents.
 #[inline]
 pub fn add(a: [u32; 3], b: [u32; 3]) -> [u32; 3] {
