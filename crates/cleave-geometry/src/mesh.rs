@@ -24,6 +24,23 @@ impl TriangleMesh {
         Self { vertices, triangles }
     }
 
+    /// The closed, outward oriented surface of the box `[lo, hi]` (12 triangles; vertex `i`
+    /// takes `hi` along axis `a` when bit `a` of `i` is set).
+    pub fn cuboid(lo: Point3<f64>, hi: Point3<f64>) -> Self {
+        let vertices = (0..8)
+            .map(|i| {
+                Point3::new(
+                    if i & 1 == 0 { lo.x } else { hi.x },
+                    if i & 2 == 0 { lo.y } else { hi.y },
+                    if i & 4 == 0 { lo.z } else { hi.z },
+                )
+            })
+            .collect();
+        let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+        let triangles = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
+        Self { vertices, triangles }
+    }
+
     /// Reads a Wavefront OBJ mesh from a reader (the caller opens files).
     ///
     /// Parsing is done by `tobj` (triangulating polygons as fans, ignoring points, lines,

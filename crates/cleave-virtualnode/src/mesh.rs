@@ -1213,18 +1213,8 @@ fn boxes_overlap(a: (Point3<Real>, Point3<Real>), b: (Point3<Real>, Point3<Real>
     (0..3).all(|k| a.0[k] <= b.1[k] + pad && b.0[k] <= a.1[k] + pad)
 }
 
-/// The closed, outward oriented surface of the box `[lo, hi]` (12 triangles).
+/// The closed, outward oriented surface of the box `[lo, hi]` (12 triangles):
+/// [`TriangleMesh::cuboid`], kept under this name for virtual node's callers.
 pub fn box_surface(lo: Point3<Real>, hi: Point3<Real>) -> TriangleMesh {
-    let v: Vec<Point3<Real>> = (0..8)
-        .map(|i| {
-            Point3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            )
-        })
-        .collect();
-    let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
-    let triangles = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
-    TriangleMesh::new(v, triangles)
+    TriangleMesh::cuboid(lo, hi)
 }

@@ -57,6 +57,10 @@ pub struct ClosingReport {
     pub walks_left_open: usize,
 }
 
+/// The square's corners counter-clockwise in `(u, v)`, in units of the cube edge: perimeter
+/// positions 0, 1, 2, 3.
+const SQUARE_CORNERS: [(i32, i32); 4] = [(0, 0), (1, 0), (1, 1), (0, 1)];
+
 #[derive(Clone, Copy, Debug)]
 enum NodeKind {
     /// Where the surface edge `edge` (vertex ids, smaller first) crosses the face's plane.
@@ -268,7 +272,7 @@ impl Closer<'_> {
         // 3c. Along the square's edges, counter-clockwise: from each node where a segment leaves,
         // through the corners passed, to the next node where one enters.
         let corner_node = |k: usize, nodes: &mut Vec<Node>| {
-            let (cu, cv) = [(0, 0), (1, 0), (1, 1), (0, 1)][k];
+            let (cu, cv) = SQUARE_CORNERS[k];
             let mut point = Point3::origin();
             point[a] = plane;
             point[u] = u0 + cu as Real * h;
@@ -370,7 +374,7 @@ impl Closer<'_> {
                 let node = &nodes[i];
                 let vertex = match node.kind {
                     NodeKind::Corner(k) => {
-                        let (cu, cv) = [(0, 0), (1, 0), (1, 1), (0, 1)][k];
+                        let (cu, cv) = SQUARE_CORNERS[k];
                         let mut offset = [0i32; 3];
                         offset[a] = i32::from(near_is_lower);
                         offset[u] = cu;

@@ -249,23 +249,7 @@ fn every_piece_stays_closed_after_random_breaks_and_cubes_torn_out() {
 #[test]
 fn a_box_cut_across_is_closed_face_by_face_outward() {
     let (lo, hi) = (Point3::new(0.0031, 0.0017, 0.0023), Point3::new(0.0913, 0.0437, 0.0379));
-    let corner = |i: usize| Point3::new([lo.x, hi.x][i & 1], [lo.y, hi.y][(i >> 1) & 1], [lo.z, hi.z][i >> 2]);
-    let vertices: Vec<Point3<Real>> = (0..8).map(corner).collect();
-    let triangles = vec![
-        [0, 2, 3],
-        [0, 3, 1],
-        [4, 5, 7],
-        [4, 7, 6],
-        [0, 1, 5],
-        [0, 5, 4],
-        [2, 6, 7],
-        [2, 7, 3],
-        [0, 4, 6],
-        [0, 6, 2],
-        [1, 3, 7],
-        [1, 7, 5],
-    ];
-    let input = TriangleMesh::new(vertices, triangles);
+    let input = TriangleMesh::cuboid(lo, hi);
     let mut mesh = voxel_body(&input, 0.01);
     let cut_x = 0.5 * (lo.x + hi.x);
     mesh.cut(&CutSurface::Plane { point: Point3::new(cut_x, 0.0, 0.0), normal: Vector3::x() }).unwrap();
