@@ -47,6 +47,15 @@ pub enum StepErrorKind {
         /// 1-based pivot in faer's permuted order
         pivot: usize,
     },
+    /// A body of an inertia relief solve without mass or with a singular inertia (its nodes on
+    /// one line): no rigid acceleration balances its load.
+    #[error("inertia relief body {body} ({nodes} nodes) has no mass or a singular inertia")]
+    SingularBody {
+        /// index of the body in the list given
+        body: usize,
+        /// its node count
+        nodes: usize,
+    },
     /// A load vector (the static load, the constant extra load of the constraints) whose length
     /// is not the system's number of scalar DOFs.
     #[error("{what} has length {len} but the system has {dofs} DOFs")]

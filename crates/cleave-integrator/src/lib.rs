@@ -28,4 +28,4 @@ pub use integrator::{
     AUTO_COARSE_DOFS, Integrator, PhaseSeconds, Preconditioner, RECOMMENDED_ROTATION_REFRESH_ANGLE, Settings, Solver,
     StepReport,
 };
-pub use statics::{IterativeStaticSolution, IterativeStatics, StaticSolution, solve_static};
+pub use statics::{IterativeStaticSolution, IterativeStatics, StaticSolution, solve_inertia_relief, solve_static};

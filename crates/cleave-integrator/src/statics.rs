@@ -1,6 +1,7 @@
 //! The static linear solve `K u = f` (no warping) with prescribed displacements, for convergence
 //! studies: assemble, eliminate the prescribed DOFs into the right-hand side, factorize, solve;
-//! and the same solve matrix-free by two-level preconditioned CG (`IterativeStatics`).
+//! and the same solve matrix-free by two-level preconditioned CG (`IterativeStatics`); the
+//! static analysis of a free body under an impact by inertia relief (`solve_inertia_relief`).
 
 use crate::cg::CgWorkspace;
 use crate::constraints::Constraints;
@@ -101,6 +102,91 @@ pub fn solve_static(
         seconds_assemble,
         seconds_solve,
     })
+}
+
+/// The static deformation of free bodies under loads that accelerate them (an impact on a
+/// rigid fragment, mueller2004 §2.4), by *inertia relief* (docs/math/rigid-fragments.md §5):
+/// each body's load `f` is balanced by the D'Alembert force of the rigid acceleration it
+/// gives the body, `f_i − m_i (a + α × r_i)` with `a = Σ f / M`, `α = I⁻¹ Σ r × f` and
+/// `r_i = X_i − C` about its rest centre of mass `C`, so that the load left is in equilibrium;
+/// the body is then held by a statically determinate 3-2-1 support, whose reactions vanish.
+/// Every node in no body is held at rest. For nodal bases (`m_i`: the lumped mass diagonal,
+/// `X_i`: the rest DOFs); the displacement is relative to the support (its rigid part is
+/// arbitrary, its strain is not).
+///
+/// `bodies`: disjoint node lists, each a connected body with an invertible inertia.
+pub fn solve_inertia_relief(
+    discretization: &dyn Discretization,
+    load: &[Real],
+    bodies: &[Vec<u32>],
+) -> Result<StaticSolution, StepErrorKind> {
+    let n = check_static_input(discretization, load, &[])?;
+    let mass = discretization.mass().diagonal();
+    let rest = discretization.rest_dofs();
+    let at = |values: &[Real], i: u32| {
+        let k = 3 * i as usize;
+        Vector3::new(values[k], values[k + 1], values[k + 2])
+    };
+    let mut relieved = load.to_vec();
+    let mut held = vec![true; n / 3];
+    let mut prescribed = Vec::new();
+    for (index, nodes) in bodies.iter().enumerate() {
+        if let Some(&node) = nodes.iter().find(|&&i| 3 * i as usize >= n) {
+            return Err(StepErrorKind::DofOutOfRange { what: "inertia relief body", dof: 3 * node as usize, dofs: n });
+        }
+        let body_mass: Real = nodes.iter().map(|&i| mass[3 * i as usize]).sum();
+        let centre = nodes.iter().map(|&i| mass[3 * i as usize] * at(rest, i)).sum::<Vector3<Real>>() / body_mass;
+        let (mut force, mut moment, mut inertia) = (Vector3::zeros(), Vector3::zeros(), Matrix3::zeros());
+        for &i in nodes {
+            let (r, f, m) = (at(rest, i) - centre, at(load, i), mass[3 * i as usize]);
+            force += f;
+            moment += r.cross(&f);
+            inertia += m * (Matrix3::identity() * r.norm_squared() - r * r.transpose());
+        }
+        let Some(spin) = inertia.cholesky().filter(|_| body_mass > 0.0 && !nodes.is_empty()) else {
+            return Err(StepErrorKind::SingularBody { body: index, nodes: nodes.len() });
+        };
+        let (acceleration, angular) = (force / body_mass, spin.solve(&moment));
+        for &i in nodes {
+            let k = 3 * i as usize;
+            let r = at(rest, i) - centre;
+            let inertial = mass[k] * (acceleration + angular.cross(&r));
+            for a in 0..3 {
+                relieved[k + a] -= inertial[a];
+            }
+            held[i as usize] = false;
+        }
+        prescribed.extend(three_two_one(nodes, rest, &centre));
+    }
+    for (i, _) in held.iter().enumerate().filter(|(_, h)| **h) {
+        prescribed.extend((0..3).map(|a| (3 * i + a, 0.0)));
+    }
+    solve_static(discretization, &relieved, &prescribed)
+}
+
+/// A statically determinate support of one body (six DOFs held at zero): the node `A` nearest
+/// its centre in all three directions; the node `B` farthest from `A` across the two directions
+/// in which `d = X_B − X_A` is smallest (the turns about the axes across `d`); a node `C` in the
+/// direction in which the turn about `d` moves it most, the node chosen to maximise that
+/// motion.
+fn three_two_one(nodes: &[u32], rest: &[Real], centre: &Vector3<Real>) -> Vec<(usize, Real)> {
+    let at = |i: u32| {
+        let k = 3 * i as usize;
+        Vector3::new(rest[k], rest[k + 1], rest[k + 2])
+    };
+    let nearest = |key: &dyn Fn(u32) -> Real| {
+        nodes.iter().copied().min_by(|&a, &b| key(a).total_cmp(&key(b))).expect("a body has nodes")
+    };
+    let a = nearest(&|i| (at(i) - centre).norm_squared());
+    let b = nearest(&|i| -(at(i) - at(a)).norm_squared());
+    let d = at(b) - at(a);
+    let along = d.iamax();
+    let c = nearest(&|i| -d.cross(&(at(i) - at(a))).amax());
+    let turn = d.cross(&(at(c) - at(a)));
+    let mut held: Vec<(usize, Real)> = (0..3).map(|k| (3 * a as usize + k, 0.0)).collect();
+    held.extend((0..3).filter(|&k| k != along).map(|k| (3 * b as usize + k, 0.0)));
+    held.push((3 * c as usize + turn.iamax(), 0.0));
+    held
 }
 
 /// A static solution by preconditioned CG on the backend's matrix-free stiffness action.

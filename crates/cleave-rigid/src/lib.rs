@@ -131,6 +131,36 @@ pub struct WorldSettings {
     /// [m/s] (net impulse over mass) is returned to the deformable body before that step (an impact the FEM must
     /// resolve and may fracture at).
     pub return_speed: Real,
+    /// What an impact does (one beyond `return_speed`).
+    pub impact: ImpactResponse,
+    /// Coefficient of restitution of every contact in the rigid world (fragments with each
+    /// other and with the obstacles): the ratio of the normal separating speed to the
+    /// approaching one. 0: no bounce.
+    pub restitution: Real,
+}
+
+/// What the rigid world does with a fragment hit beyond `return_speed`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ImpactResponse {
+    /// The step is rolled back and the fragment returns to the deformable body, which meets
+    /// the impact dynamically.
+    #[default]
+    Return,
+    /// The step is kept (the fragment bounces as a rigid body) and the impact's contact
+    /// impulses are reported ([`RigidWorld::impacts`]) for a static FE analysis, as the
+    /// paper's pig (mueller2004 §4).
+    Keep,
+}
+
+/// One fragment's contacts in a step that hit it beyond `return_speed`
+/// ([`ImpactResponse::Keep`]): where and how hard, in the fragment's own frame (the world frame
+/// at its hand-off, origin at its centre of mass, where its nodes' offsets live).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Impact {
+    /// Index of the fragment in [`RigidWorld::fragments`].
+    pub fragment: usize,
+    /// Per contact point: the point on the fragment and the normal impulse it received [N·s].
+    pub contacts: Vec<(Point3<Real>, Vector3<Real>)>,
 }
 
 /// The collider of a fragment, in world coordinates at the hand-off.
@@ -162,6 +192,14 @@ pub struct Fragment {
     collider: ColliderHandle,
 }
 
+impl Fragment {
+    /// Each node's offset from the centre of mass at the hand-off: its position in the
+    /// fragment's own frame.
+    pub fn offsets(&self) -> &[Vector3<Real>] {
+        &self.offsets
+    }
+}
+
 /// The rigid fragments and the rapier world they move in.
 pub struct RigidWorld {
     world: PhysicsWorld,
@@ -173,6 +211,8 @@ pub struct RigidWorld {
     settings: WorldSettings,
     /// Each fragment's pose and velocities before the step (the roll-back of an impact).
     saved: Vec<(Pose, DVec3, DVec3)>,
+    /// The impacts of the last step ([`ImpactResponse::Keep`]).
+    impacts: Vec<Impact>,
 }
 
 fn to_glam(v: &Vector3<Real>) -> Vector {
@@ -239,10 +279,10 @@ impl RigidWorld {
                 }
             };
             let body = world.insert_body(RigidBodyBuilder::fixed().translation(to_glam(&point)));
-            let collider = collider.restitution(0.0).build();
+            let collider = collider.restitution(settings.restitution).build();
             world.colliders.insert_with_parent(collider, body, &mut world.bodies);
         }
-        Ok(Self { world, planes, mesh_boxes, fragments: Vec::new(), settings, saved: Vec::new() })
+        Ok(Self { world, planes, mesh_boxes, fragments: Vec::new(), settings, saved: Vec::new(), impacts: Vec::new() })
     }
 
     /// The fragments now.
@@ -276,7 +316,8 @@ impl RigidWorld {
                     .map_err(|e| HandOffError::Mesh(e.to_string()))?
             }
         };
-        let collider = builder.density(0.0).friction(self.settings.friction).restitution(0.0).build();
+        let collider =
+            builder.density(0.0).friction(self.settings.friction).restitution(self.settings.restitution).build();
         let i = &fit.inertia;
         let inertia = rapier3d_f64::math::Matrix::from_cols(
             DVec3::new(i[(0, 0)], i[(1, 0)], i[(2, 0)]),
@@ -328,9 +369,23 @@ impl RigidWorld {
     /// stepped again without them, so the deformable body meets the impact from the velocities
     /// before it. Fragments near a returned one are not returned here (the caller's proximity
     /// rule does that).
+    ///
+    /// With [`ImpactResponse::Keep`] nothing is returned: the step stands, and the fragments hit
+    /// are listed in [`RigidWorld::impacts`].
     pub fn step(&mut self) -> Vec<Fragment> {
         let mut returned = Vec::new();
+        self.impacts.clear();
         if self.fragments.is_empty() {
+            return returned;
+        }
+        if self.settings.impact == ImpactResponse::Keep {
+            self.world.step();
+            for i in 0..self.fragments.len() {
+                if self.contact_impulse(i) > self.settings.return_speed * self.fragments[i].mass {
+                    let contacts = self.contact_points(i);
+                    self.impacts.push(Impact { fragment: i, contacts });
+                }
+            }
             return returned;
         }
         loop {
@@ -418,6 +473,34 @@ impl RigidWorld {
             if pair.collider2 == collider { sum + pair.total_impulse() } else { sum - pair.total_impulse() }
         });
         (net.length() - fragment.mass * self.settings.time_step * self.settings.gravity.norm()).max(0.0)
+    }
+
+    /// The impacts of the last [`step`](Self::step) ([`ImpactResponse::Keep`]; empty otherwise).
+    pub fn impacts(&self) -> &[Impact] {
+        &self.impacts
+    }
+
+    /// Fragment `index`'s contact points in the last step with the normal impulse each gave it,
+    /// in its own frame (see [`Impact`]). Rapier's manifolds hold each point in its collider's
+    /// frame, which for a fragment is its body's (the collider has no offset).
+    fn contact_points(&self, index: usize) -> Vec<(Point3<Real>, Vector3<Real>)> {
+        let fragment = &self.fragments[index];
+        let rotation = self.world.bodies[fragment.body].position().rotation;
+        let mut contacts = Vec::new();
+        for pair in self.world.narrow_phase.contact_pairs_with(fragment.collider) {
+            let first = pair.collider1 == fragment.collider;
+            for manifold in pair.solver_manifolds() {
+                // The normal points from the first collider to the second, whose body the
+                // impulse pushes along it.
+                let normal = rotation.inverse() * manifold.data.normal;
+                let normal = if first { -normal } else { normal };
+                for point in manifold.points.iter().filter(|p| p.data.impulse > 0.0) {
+                    let local = if first { point.local_p1 } else { point.local_p2 };
+                    contacts.push((Point3::from(from_glam(local)), from_glam(normal * point.data.impulse)));
+                }
+            }
+        }
+        contacts
     }
 
     /// Writes each fragment's rigid motion into its nodes: `x = c + R r`, `v = v_c + ω × (x − c)`.

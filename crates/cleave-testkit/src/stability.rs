@@ -255,7 +255,8 @@ fn step_failure(error: StepError) -> Verdict {
         | StepErrorKind::DofOutOfRange { .. }
         | StepErrorKind::NodeOutOfRange { .. }
         | StepErrorKind::PinTargets { .. }
-        | StepErrorKind::SurfacePieces { .. }) => Verdict::Error(kind.to_string()),
+        | StepErrorKind::SurfacePieces { .. }
+        | StepErrorKind::SingularBody { .. }) => Verdict::Error(kind.to_string()),
     }
 }
 
