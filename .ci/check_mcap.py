@@ -20,6 +20,9 @@ edge in four triangles (two coinciding sheets of a cut that ends inside the mate
 Both counts are printed per failing piece and in total, and both must be 0.
 --expect-rigid-at-end: the last /events `rigid` event (the runner's count of hand-offs, "... N rigid
 now") leaves at least one rigid body: some pieces end the run on the rigid-body engine.
+--expect-bounce H: after the first /events `impact` event (a static impact on a rigid fragment),
+the recorded surface's lowest point (/stats surface.min_z) rises at least H metres above the ground
+before it comes down again: the body bounced.
 --energy-after-last-cut PCT: E0 is /stats energy.total at the first step at or after the time of
 the last /events `cut` event; at no later step may the total energy exceed E0 + PCT/100 * |E0|.
 At the end, one line sums up what was checked.
@@ -41,6 +44,8 @@ def main() -> int:
     strict_closed = "--strict-closed" in sys.argv
     energy_pct = (float(sys.argv[sys.argv.index("--energy-after-last-cut") + 1])
                   if "--energy-after-last-cut" in sys.argv else None)
+    bounce = float(sys.argv[sys.argv.index("--expect-bounce") + 1]) if "--expect-bounce" in sys.argv else None
+    first_impact = None  # the time of the first `impact` event
     counts = {}
     stats = []
     cuts = 0
@@ -62,6 +67,8 @@ def main() -> int:
                     surfaces.append((message.log_time, data))
             elif channel.topic == "/stats":
                 stats.append(data)
+            elif channel.topic == "/events" and data["kind"] == "impact" and first_impact is None:
+                first_impact = data["time"]
             elif channel.topic == "/events" and data["kind"] == "rigid":
                 last_rigid = data["message"]
             elif channel.topic == "/events" and data["kind"] in ("cut", "fracture"):
@@ -88,6 +95,14 @@ def main() -> int:
         rigid_now = int(last_rigid.split("; ")[-1].split(" ")[0]) if last_rigid else 0
         print(f"last rigid event: {last_rigid!r}")
         if rigid_now < 1:
+            failed.append(name)
+    if bounce is not None:
+        name = f"--expect-bounce {bounce:g} (the lowest point rises after the first impact)"
+        checked.append(name)
+        after = [s["surface"]["min_z"] for s in stats if first_impact is not None and s["time"] > first_impact]
+        height = max(after) if after else float("nan")
+        print(f"first impact at {first_impact} s; highest lowest point after it: {height:.4f} m")
+        if not after or not height >= bounce:
             failed.append(name)
     if energy_pct is not None:
         name = f"--energy-after-last-cut {energy_pct:g} %"

@@ -161,6 +161,9 @@ pub struct Impact {
     pub fragment: usize,
     /// Per contact point: the point on the fragment and the normal impulse it received [N·s].
     pub contacts: Vec<(Point3<Real>, Vector3<Real>)>,
+    /// The speed at which its centre of mass approached along the net impulse before the step,
+    /// `max(0, −v_c · J / |J|)` [m/s].
+    pub approach_speed: Real,
 }
 
 /// The collider of a fragment, in world coordinates at the hand-off.
@@ -349,8 +352,11 @@ impl RigidWorld {
     }
 
     /// Removes fragment `index` from the rigid world (its nodes' motion is whatever
-    /// [`write_motion`](Self::write_motion) last wrote: the rigid field of its body).
+    /// [`write_motion`](Self::write_motion) last wrote: the rigid field of its body), and
+    /// forgets the last step's impacts.
     pub fn remove(&mut self, index: usize) -> Fragment {
+        // The impacts name fragments by index.
+        self.impacts.clear();
         let fragment = self.fragments.swap_remove(index);
         self.world.remove_body_with_colliders(fragment.body, true);
         fragment
@@ -379,11 +385,17 @@ impl RigidWorld {
             return returned;
         }
         if self.settings.impact == ImpactResponse::Keep {
+            let before: Vec<Vector3<Real>> =
+                self.fragments.iter().map(|f| from_glam(self.world.bodies[f.body].linvel())).collect();
             self.world.step();
             for i in 0..self.fragments.len() {
                 if self.contact_impulse(i) > self.settings.return_speed * self.fragments[i].mass {
+                    let rotation = self.world.bodies[self.fragments[i].body].position().rotation;
                     let contacts = self.contact_points(i);
-                    self.impacts.push(Impact { fragment: i, contacts });
+                    let net = contacts.iter().map(|(_, j)| j).sum::<Vector3<Real>>();
+                    let net = from_glam(rotation * to_glam(&net));
+                    let approach_speed = (-before[i].dot(&net) / net.norm().max(Real::MIN_POSITIVE)).max(0.0);
+                    self.impacts.push(Impact { fragment: i, contacts, approach_speed });
                 }
             }
             return returned;

@@ -335,6 +335,7 @@ fn a_kept_impact_bounces_and_reports_the_impulses_that_made_it() {
     let after = RigidFit::of(&nodes, &m, &x1, &v1).unwrap();
     let approach = -before.velocity.z;
     assert!(approach > 2.9, "{approach}");
+    assert!((hit.approach_speed - approach).abs() < 1e-3 * approach, "{} vs {approach}", hit.approach_speed);
     let rebound = after.velocity.z;
     // Rapier's solver (substeps, each bouncing from its own approach) lands a little above the
     // nominal ratio: 0.43–0.51 × 3 m/s for gaps of 0–14 mm at the step's start (measured).

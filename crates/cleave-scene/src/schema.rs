@@ -268,6 +268,27 @@ pub struct RigidSpec {
     /// sizes.
     #[serde(default)]
     pub margin: Option<Real>,
+    /// What an impact on a rigid fragment does (docs/math/rigid-fragments.md §2, §5).
+    #[serde(default)]
+    pub impact: ImpactSpec,
+    /// Coefficient of restitution of the rigid world's contacts (0: no bounce, 1: elastic);
+    /// the FE contact has none.
+    #[serde(default)]
+    pub restitution: Real,
+}
+
+/// What an impact on a rigid fragment does.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+pub enum ImpactSpec {
+    /// The fragment returns to the deformable body before the impact, which the FE model meets
+    /// dynamically (and may fracture in, with `fracture`).
+    #[default]
+    Dynamic,
+    /// The paper's pig (mueller2004 §2.4, §4): the fragment bounces as a rigid body, and a static
+    /// FE analysis of the impact (its contact impulses over the step and the D'Alembert force
+    /// they balance) gives the stress that `fracture`, when set, breaks it with; the pieces of
+    /// a break return to the deformable body with the rigid motion after the bounce.
+    Static,
 }
 
 fn default_rigid_strain_energy() -> Real {

@@ -5,7 +5,8 @@ use super::rigid::RigidRules;
 use super::*;
 use crate::record::Recorder;
 use crate::schema::{
-    ColliderSpec, ContactSpec, EventSpec, Object, PinSpec, Positive, PreconditionerSpec, SolverSpec, Transform,
+    ColliderSpec, ContactSpec, EventSpec, ImpactSpec, Object, PinSpec, Positive, PreconditionerSpec, SolverSpec,
+    Transform,
 };
 use cleave_core::{EmbeddedSurface, Point3, Real, Vector3};
 use cleave_geometry::TriangleMesh;
@@ -13,7 +14,7 @@ use cleave_integrator::{
     Constraints, Integrator, MeshCollider, PlaneCollider, Preconditioner, Settings, Solver, SurfaceContact,
 };
 use cleave_registry::{BackendError, Region, Shape, SolidRequest};
-use cleave_rigid::{Obstacle, RigidWorld, WorldSettings};
+use cleave_rigid::{ImpactResponse, Obstacle, RigidWorld, WorldSettings};
 use nalgebra::Rotation3;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -340,7 +341,14 @@ impl Simulation {
                     max_strain_energy: positive("max_strain_energy", spec.max_strain_energy)?,
                     max_vibration_speed: positive("max_vibration_speed", spec.max_vibration_speed)?,
                     margin: positive("margin", spec.margin.unwrap_or(2.0 * element_size))?,
+                    static_impacts: spec.impact == ImpactSpec::Static,
                 };
+                if !(0.0..=1.0).contains(&spec.restitution) {
+                    return Err(build_error(format!(
+                        "rigid_fragments.restitution must lie in [0, 1], got {}",
+                        spec.restitution
+                    )));
+                }
                 let mut obstacles: Vec<Obstacle> = constraints
                     .planes
                     .iter()
@@ -355,6 +363,11 @@ impl Simulation {
                     damping: settings.rayleigh_alpha,
                     friction: constraints.surface_contact.as_ref().map_or(0.5, |c| c.friction),
                     return_speed: positive("return_speed", spec.return_speed)?,
+                    impact: match spec.impact {
+                        ImpactSpec::Dynamic => ImpactResponse::Return,
+                        ImpactSpec::Static => ImpactResponse::Keep,
+                    },
+                    restitution: spec.restitution,
                 };
                 let world = RigidWorld::new(world_settings, &obstacles).map_err(|e| build_error(e.to_string()))?;
                 Some(RigidHybrid::new(world, rules, constraints.pinned_dofs.clone()))

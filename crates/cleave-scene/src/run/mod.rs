@@ -16,7 +16,7 @@ use timeline::{TimedCut, prepare_timeline};
 
 use crate::record::{RecordError, Recorder};
 use crate::schema::Scene;
-use cleave_core::{CutSurface, Discretization, Embedding, Piece, Point3, Real, Vector3};
+use cleave_core::{CutSurface, Discretization, Embedding, Matrix3, Piece, Point3, Real, Vector3};
 use cleave_integrator::{Constraints, ContactSet, Integrator, StepError, StepReport};
 use cleave_registry::{Backend, Region};
 use serde_json::json;
@@ -391,6 +391,16 @@ impl Simulation {
     /// Breaks the body where its stress exceeds the material's strength (`Fracturable`), and
     /// carries everything across as a cut does; recorded as a `fracture` event.
     fn apply_fracture(&mut self, strength: Real) -> Result<(), SceneError> {
+        self.apply_fracture_at(strength, None)
+    }
+
+    /// [`apply_fracture`](Self::apply_fracture) with the stress read from `state` (positions and
+    /// element frames) instead of the integrator's: a static analysis of an impact.
+    fn apply_fracture_at(
+        &mut self,
+        strength: Real,
+        state: Option<(&[Real], &[Matrix3<Real>])>,
+    ) -> Result<(), SceneError> {
         let clock = Instant::now();
         let path = self.path.clone();
         let build_error = |message: String| SceneError::Build { path: path.clone(), message };
@@ -402,8 +412,9 @@ impl Simulation {
         let body = Arc::get_mut(&mut self.discretization).expect("body_mut made the body unshared");
         let fracturable =
             body.as_fracturable().ok_or_else(|| build_error(format!("the {backend} backend cannot fracture")))?;
+        let (x, rotations) = state.unwrap_or((self.integrator.positions(), self.integrator.rotations()));
         let Some(change) = fracturable
-            .fracture(self.integrator.positions(), self.integrator.rotations(), strength)
+            .fracture(x, rotations, strength)
             .map_err(|e| build_error(format!("fracture at t = {time} s: {e}")))?
         else {
             return Ok(());
@@ -549,6 +560,11 @@ impl Simulation {
             self.record_surface()?;
         }
         self.record_stats(&report)?;
+        let d = self.discretization.as_ref();
+        let impacts = self.rigid.as_ref().map(|r| r.impact_loads(d, &self.cuts.pieces)).unwrap_or_default();
+        if !impacts.is_empty() {
+            self.apply_static_impact(impacts)?;
+        }
         if let Some(check) = self.fracture.as_mut() {
             let steps = self.integrator.steps_taken();
             let impacts = |c: Option<RigidCounts>| c.map_or(0, |c| c.by_impact);
@@ -565,6 +581,45 @@ impl Simulation {
         }
         self.prepare_next_cut();
         Ok(report)
+    }
+
+    /// The static analysis of this step's impacts on rigid fragments (`impact: Static`, the
+    /// paper's pig; docs/math/rigid-fragments.md §5): each hit fragment's displacement under its
+    /// contact impulses by inertia relief, scaled so that its strain energy is the kinetic energy
+    /// of the approach (the energy method for impact), recorded as an `impact` event; with
+    /// `fracture`, the body breaks where the sum of those displacements stresses it beyond the
+    /// strength (every other node at rest, every frame unrotated: the analysis is in the rest
+    /// frame). Nothing of it enters the state.
+    fn apply_static_impact(&mut self, impacts: Vec<rigid::ImpactLoad>) -> Result<(), SceneError> {
+        let d = self.discretization.as_ref();
+        let mut displacement = vec![0.0; 3 * d.num_nodes()];
+        let mut messages = Vec::new();
+        for impact in &impacts {
+            let step = self.integrator.steps_taken();
+            let solution = cleave_integrator::solve_inertia_relief(d, &impact.load, &impact.bodies)
+                .map_err(|kind| SceneError::Step { path: self.path.clone(), source: StepError { step, kind } })?;
+            let scale = if solution.strain_energy > 0.0 {
+                (impact.approach_energy / solution.strain_energy).sqrt()
+            } else {
+                0.0
+            };
+            displacement.iter_mut().zip(&solution.displacement).for_each(|(u, s)| *u += scale * s);
+            messages.push(format!(
+                "velocity change {:.3} m/s, {} pieces loaded, strain energy {:.4e} J",
+                impact.velocity_change,
+                impact.bodies.len(),
+                impact.approach_energy
+            ));
+        }
+        let time = self.integrator.time();
+        if let Some(recorder) = self.recorder.as_mut() {
+            let message = format!("static impact on {} rigid fragments: {}", impacts.len(), messages.join("; "));
+            recorder.event(time, "impact", &message)?;
+        }
+        let Some(strength) = self.fracture.as_ref().map(|f| f.strength) else { return Ok(()) };
+        let x: Vec<Real> = d.rest_dofs().iter().zip(&displacement).map(|(r, u)| r + u).collect();
+        let unrotated = vec![Matrix3::identity(); d.num_frames()];
+        self.apply_fracture_at(strength, Some((&x, &unrotated)))
     }
 
     /// The DOFs the moving pin regions hold now (after a topology change, again).

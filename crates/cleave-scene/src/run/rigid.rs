@@ -20,6 +20,24 @@ pub(crate) struct RigidRules {
     pub max_vibration_speed: Real,
     /// [m]
     pub margin: Real,
+    /// Impacts are kept in the rigid world and analysed statically (`impact: Static`): no
+    /// fragment returns ahead of an obstacle, and a piece about to hit one may go rigid.
+    pub static_impacts: bool,
+}
+
+/// The static load of an impact on one fragment (`impact: Static`, docs/math/rigid-fragments.md
+/// §5): its contact impulses as forces at the nearest nodes, in the rest frame, of a size to be
+/// scaled (by the energy of the impact), and the free bodies they act on (its pieces that
+/// received some).
+pub(crate) struct ImpactLoad {
+    pub load: Vec<Real>,
+    pub bodies: Vec<Vec<u32>>,
+    /// The kinetic energy of the approach, `½ M v_n²` with `v_n` the speed at which the
+    /// fragment's centre approached along the net impulse before the step [J]: what the static
+    /// load's strain energy is scaled to.
+    pub approach_energy: Real,
+    /// `|J| / M` [m/s].
+    pub velocity_change: Real,
 }
 
 /// Hand-offs over a run.
@@ -35,6 +53,8 @@ pub struct RigidCounts {
     pub by_change: usize,
     /// Fragments rigid now.
     pub rigid: usize,
+    /// Impacts kept in the rigid world and analysed statically (`impact: Static`).
+    pub static_impacts: usize,
 }
 
 pub(crate) struct RigidHybrid {
@@ -158,9 +178,11 @@ impl RigidHybrid {
         if self.world.is_empty() {
             return Ok(());
         }
-        // Fragments about to hit an obstacle return two steps ahead (docs §2).
+        // Fragments about to hit an obstacle return two steps ahead (docs §2), unless the
+        // rigid world keeps its impacts.
         let (x, v) = (integrator.positions(), integrator.velocities());
-        let ahead = self.world.about_to_hit(x, v, self.rules.margin, 2.0);
+        let ahead =
+            if self.rules.static_impacts { Vec::new() } else { self.world.about_to_hit(x, v, self.rules.margin, 2.0) };
         for &i in ahead.iter().rev() {
             self.world.remove(i);
         }
@@ -189,6 +211,7 @@ impl RigidHybrid {
         }
         let hit = self.world.step().len();
         self.counts.by_impact += ahead.len() + hit;
+        self.counts.static_impacts += self.world.impacts().len();
         changed |= hit > 0;
         if changed {
             self.refresh_fragment_of(body.num_nodes());
@@ -251,7 +274,8 @@ impl RigidHybrid {
         loop {
             let (keep, stay): (Vec<usize>, Vec<usize>) = candidates.iter().partition(|&&i| {
                 !deformable.near(&pieces[i].nodes, x)
-                    && !self.world.approaching(&pieces[i].nodes, x, v, self.rules.margin, 2.0)
+                    && (self.rules.static_impacts
+                        || !self.world.approaching(&pieces[i].nodes, x, v, self.rules.margin, 2.0))
             });
             if stay.is_empty() {
                 break;
@@ -320,6 +344,58 @@ impl RigidHybrid {
         Ok(edited)
     }
 
+    /// The static loads of this step's impacts (`impact: Static`), one per fragment hit: each
+    /// contact impulse `J` acts as a force at the fragment's node nearest its point, all in the
+    /// rest frame (its size is the energy method's, applied by the caller). A fragment's own frame (its hand-off
+    /// shape about its centre) is turned to the rest frame by the rotation that best carries the
+    /// rest shape onto it (the polar factor of `Σ m r_handoff (X − C)ᵀ`); its pieces that
+    /// receive a load are the free bodies (docs §5).
+    pub(crate) fn impact_loads(&self, body: &dyn Discretization, pieces: &[Piece]) -> Vec<ImpactLoad> {
+        let impacts = self.world.impacts();
+        let rest = body.rest_dofs();
+        let mass = body.mass().diagonal();
+        let at = |n: u32| {
+            let k = 3 * n as usize;
+            nalgebra::Vector3::new(rest[k], rest[k + 1], rest[k + 2])
+        };
+        let mut loads = Vec::new();
+        for impact in impacts {
+            let mut load = vec![0.0; rest.len()];
+            let fragment = &self.world.fragments()[impact.fragment];
+            let total: Real = fragment.nodes.iter().map(|&n| mass[3 * n as usize]).sum();
+            let centre =
+                fragment.nodes.iter().map(|&n| mass[3 * n as usize] * at(n)).sum::<nalgebra::Vector3<Real>>() / total;
+            let mut covariance = Matrix3::zeros();
+            for (&n, offset) in fragment.nodes.iter().zip(fragment.offsets()) {
+                covariance += mass[3 * n as usize] * offset * (at(n) - centre).transpose();
+            }
+            let to_rest = nearest_rotation(&covariance).transpose();
+            let mut net = nalgebra::Vector3::zeros();
+            for (point, impulse) in &impact.contacts {
+                let p = centre + to_rest * point.coords;
+                let nearest = fragment
+                    .nodes
+                    .iter()
+                    .copied()
+                    .min_by(|&a, &b| (at(a) - p).norm_squared().total_cmp(&(at(b) - p).norm_squared()))
+                    .expect("a fragment has nodes");
+                let force = to_rest * impulse;
+                let k = 3 * nearest as usize;
+                (0..3).for_each(|a| load[k + a] += force[a]);
+                net += impulse;
+            }
+            let bodies: Vec<Vec<u32>> = pieces
+                .iter()
+                .filter(|p| p.nodes.iter().any(|&n| (0..3).any(|a| load[3 * n as usize + a] != 0.0)))
+                .map(|p| p.nodes.clone())
+                .collect();
+            let velocity_change = net.norm() / fragment.mass;
+            let approach_energy = 0.5 * fragment.mass * impact.approach_speed.powi(2);
+            loads.push(ImpactLoad { load, bodies, approach_energy, velocity_change });
+        }
+        loads
+    }
+
     /// The elastic energy of one piece: the body's with every other node at its rest position
     /// and every other frame unrotated (an element at rest stores none, and each element lies
     /// in one piece); the piece's frames keep the step's rotations.
@@ -343,4 +419,17 @@ impl RigidHybrid {
         }
         body.elastic_energy(&self.alone_rotations, &self.alone)
     }
+}
+
+/// The rotation nearest `a` (the polar factor of its singular value decomposition, a reflection
+/// turned into a rotation by flipping the least singular direction).
+fn nearest_rotation(a: &Matrix3<Real>) -> Matrix3<Real> {
+    let svd = a.svd(true, true);
+    let (u, v_t) = (svd.u.expect("asked for u"), svd.v_t.expect("asked for vᵀ"));
+    let mut flip = Matrix3::identity();
+    if (u * v_t).determinant() < 0.0 {
+        // nalgebra sorts the singular values in descending order: the last is the least.
+        flip[(2, 2)] = -1.0;
+    }
+    u * flip * v_t
 }
