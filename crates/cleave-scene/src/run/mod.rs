@@ -591,6 +591,7 @@ impl Simulation {
     /// strength (every other node at rest, every frame unrotated: the analysis is in the rest
     /// frame). Nothing of it enters the state.
     fn apply_static_impact(&mut self, impacts: Vec<rigid::ImpactLoad>) -> Result<(), SceneError> {
+        let clock = Instant::now();
         let d = self.discretization.as_ref();
         let mut displacement = vec![0.0; 3 * d.num_nodes()];
         let mut messages = Vec::new();
@@ -613,7 +614,12 @@ impl Simulation {
         }
         let time = self.integrator.time();
         if let Some(recorder) = self.recorder.as_mut() {
-            let message = format!("static impact on {} rigid fragments: {}", impacts.len(), messages.join("; "));
+            let message = format!(
+                "static impact on {} rigid fragments: {}; analysed in {:.2} ms",
+                impacts.len(),
+                messages.join("; "),
+                1e3 * clock.elapsed().as_secs_f64()
+            );
             recorder.event(time, "impact", &message)?;
         }
         let Some(strength) = self.fracture.as_ref().map(|f| f.strength) else { return Ok(()) };
