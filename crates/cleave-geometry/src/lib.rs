@@ -25,6 +25,8 @@
 //!   by cut triangles and planes with exact side-of-plane decisions ([`predicates`], on
 //!   `robust`), and its material regions: the splitting every polyhedral backend cuts with
 //!   (virtual node's duplicates; mean value's elements next).
+//! - [`split_polygon`] (module `polygon_split`): a planar polygon, convex or not, split by a plane
+//!   into its pieces on each side, sides exact: the face step of cutting general polyhedra (DG).
 //!
 //! The library performs no file or terminal I/O and reports bad input as
 //! [`GeometryError`] values naming the offending triangle, edge, vertex or OBJ line.
@@ -41,6 +43,7 @@ mod moments;
 mod obj;
 mod overlap;
 mod poly_validate;
+mod polygon_split;
 mod polyhedral;
 pub mod predicates;
 mod slivers;
@@ -65,6 +68,7 @@ pub use moments::{
 };
 pub use overlap::triangle_aabb_overlap;
 pub use poly_validate::PolyMeshStats;
+pub use polygon_split::{PolygonPiece, PolygonSplit, PolygonSplitError, SplitCorner, split_polygon};
 pub use polyhedral::{ElementFace, PolyFace, PolyhedralMesh};
 pub use slivers::{SliverRepair, repair_slivers};
 pub use union_find::UnionFind;
