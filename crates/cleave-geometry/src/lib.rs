@@ -26,7 +26,9 @@
 //!   `robust`), and its material regions: the splitting every polyhedral backend cuts with
 //!   (virtual node's duplicates; mean value's elements next).
 //! - [`split_polygon`] (module `polygon_split`): a planar polygon, convex or not, split by a plane
-//!   into its pieces on each side, sides exact: the face step of cutting general polyhedra (DG).
+//!   into its pieces on each side, sides exact: the face step of cutting general polyhedra (DG);
+//!   [`split_element`] (module `element_split`): the element step, a closed polyhedron split
+//!   into its connected children, capped by the section.
 //!
 //! The library performs no file or terminal I/O and reports bad input as
 //! [`GeometryError`] values naming the offending triangle, edge, vertex or OBJ line.
@@ -34,6 +36,7 @@
 pub mod arrangement;
 mod blade;
 mod closest;
+mod element_split;
 mod error;
 mod hex_slice;
 mod inside;
@@ -53,6 +56,9 @@ mod voxelize;
 
 pub use blade::{Blade, BladeError, Keyframe};
 pub use closest::{closest_parameters_of_lines, closest_point_on_triangle};
+pub use element_split::{
+    ChildFace, ElementChild, ElementSplit, ElementSplitError, FaceSource, SplitVertex, split_element,
+};
 pub use error::GeometryError;
 pub use hex_slice::{
     DEFAULT_MERGE_BELOW, GRID_MARGIN, HexSliceOptions, HexSlicing, MAX_SLICE_CELLS, MIN_FACE_AREA, hex_slice,

@@ -2,7 +2,7 @@
 //! sides decided exactly (`side3`): the first brick of cutting general polyhedra (the DG
 //! backend's elements, kaufmann2008 §8; docs/math/polygon-split.md).
 
-use crate::predicates::{kept_axes, side3};
+use crate::predicates::{kept_axes, side_of_plane};
 use nalgebra::{Point2, Point3, Vector3};
 
 /// A corner of a split polygon: one of the input corners, or the crossing of the plane with
@@ -51,14 +51,19 @@ pub enum PolygonSplitError {
 }
 
 /// Splits the simple planar polygon `points` (in order, convex or not) by the plane through
-/// `plane` (three points; its right-hand normal `(b − a) × (c − a)` points to side `+1`).
+/// `plane` (three points; its right-hand normal `(b − a) × (c − a)` points to side `+1`),
+/// corners within `tolerance` (a distance) of it counting as on it.
 ///
-/// Each corner's side is exact; a crossing lies on an edge whose corners are on opposite sides,
+/// Each corner's side is exact beyond the tolerance ([`side_of_plane`]); a crossing lies on an edge whose corners are on opposite sides,
 /// at the float interpolation of their distances. The pieces are the faces of the polygon's
 /// boundary joined with the chords of the plane's line inside it (between consecutive on-plane
 /// corners along the line), traced with the interior on the left: a convex polygon gives at
 /// most one piece per side, a non-convex one as many as the line leaves (docs/math/polygon-split.md).
-pub fn split_polygon(points: &[Point3<f64>], plane: &[Point3<f64>; 3]) -> Result<PolygonSplit, PolygonSplitError> {
+pub fn split_polygon(
+    points: &[Point3<f64>],
+    plane: &[Point3<f64>; 3],
+    tolerance: f64,
+) -> Result<PolygonSplit, PolygonSplitError> {
     let n = points.len();
     if n < 3 {
         return Err(PolygonSplitError::TooFewCorners(n));
@@ -70,7 +75,7 @@ pub fn split_polygon(points: &[Point3<f64>], plane: &[Point3<f64>; 3]) -> Result
         return Err(PolygonSplitError::Degenerate);
     }
     let [a, b, c] = plane;
-    let signs: Vec<i8> = points.iter().map(|p| side3(a, b, c, p)).collect();
+    let signs: Vec<i8> = points.iter().map(|p| side_of_plane(plane, p, tolerance)).collect();
     let whole = |side: i8| PolygonSplit {
         corners: (0..n).map(|i| (SplitCorner::Vertex(i), points[i], signs[i])).collect(),
         pieces: vec![PolygonPiece { side, corners: (0..n).collect() }],

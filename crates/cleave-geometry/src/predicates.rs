@@ -20,6 +20,22 @@ pub fn side3(a: &Point3<f64>, b: &Point3<f64>, c: &Point3<f64>, d: &Point3<f64>)
     }
 }
 
+/// The side of `p` relative to the plane through `plane` (its right-hand normal points to
+/// `+1`), with points within `tolerance` (a distance) of it counted as on it (`0`): exact
+/// (`side3`) beyond the tolerance. A tolerance of zero is `side3` itself. Cutting uses a small
+/// one so that a plane through a corner in exact arithmetic, which rounding moved by 1e-16, is
+/// not split off a sliver a few ulps wide (docs/math/polygon-split.md, "Tolerance").
+pub fn side_of_plane(plane: &[Point3<f64>; 3], p: &Point3<f64>, tolerance: f64) -> i8 {
+    let [a, b, c] = plane;
+    if tolerance > 0.0 {
+        let n = (b - a).cross(&(c - a));
+        if n.dot(&(p - a)).abs() <= tolerance * n.norm() {
+            return 0;
+        }
+    }
+    side3(a, b, c, p)
+}
+
 /// The two coordinates kept when projecting along `axis` (cyclic, so that projecting a plane whose
 /// normal has a positive `axis` component keeps counter-clockwise order).
 #[inline]

@@ -59,10 +59,10 @@ const U: [[f64; 2]; 8] =
 #[test]
 fn a_square_splits_into_one_piece_per_side() {
     let square = flat(&[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
-    let split = split_polygon(&square, &plane(Vector3::x(), 0.3)).unwrap();
+    let split = split_polygon(&square, &plane(Vector3::x(), 0.3), 0.0).unwrap();
     close(&pieces(&split, &Vector3::z()), &[(-1, 0.3), (1, 0.7)]);
     // Through two corners: the diagonal x + y = 1, no crossing inserted.
-    let split = split_polygon(&square, &plane(Vector3::new(1.0, 1.0, 0.0), 0.5f64.sqrt())).unwrap();
+    let split = split_polygon(&square, &plane(Vector3::new(1.0, 1.0, 0.0), 0.5f64.sqrt()), 0.0).unwrap();
     assert_eq!(split.corners.len(), 4);
     close(&pieces(&split, &Vector3::z()), &[(-1, 0.5), (1, 0.5)]);
 }
@@ -71,13 +71,13 @@ fn a_square_splits_into_one_piece_per_side() {
 fn a_u_cut_across_its_arms_leaves_three_pieces() {
     let u = flat(&U);
     // y = 2: below, the U's base with the notch's lower part (6 − 1); above, two arms.
-    let split = split_polygon(&u, &plane(Vector3::y(), 2.0)).unwrap();
+    let split = split_polygon(&u, &plane(Vector3::y(), 2.0), 0.0).unwrap();
     close(&pieces(&split, &Vector3::z()), &[(-1, 5.0), (1, 1.0), (1, 1.0)]);
     // y = 1, along the notch's bottom edge: the base below, the two arms (2 each) above.
-    let split = split_polygon(&u, &plane(Vector3::y(), 1.0)).unwrap();
+    let split = split_polygon(&u, &plane(Vector3::y(), 1.0), 0.0).unwrap();
     close(&pieces(&split, &Vector3::z()), &[(-1, 3.0), (1, 2.0), (1, 2.0)]);
     // x = 1.5, through the notch: two halves, each an L.
-    let split = split_polygon(&u, &plane(Vector3::x(), 1.5)).unwrap();
+    let split = split_polygon(&u, &plane(Vector3::x(), 1.5), 0.0).unwrap();
     close(&pieces(&split, &Vector3::z()), &[(-1, 3.5), (1, 3.5)]);
 }
 
@@ -85,14 +85,14 @@ fn a_u_cut_across_its_arms_leaves_three_pieces() {
 fn a_plane_that_only_touches_leaves_the_polygon_whole() {
     let u = flat(&U);
     for (normal, offset, side) in [(Vector3::y(), 3.0, -1), (Vector3::y(), 0.0, 1), (Vector3::z(), 0.0, 0)] {
-        let split = split_polygon(&u, &plane(normal, offset)).unwrap();
+        let split = split_polygon(&u, &plane(normal, offset), 0.0).unwrap();
         assert_eq!(split.pieces.len(), 1);
         assert_eq!(split.pieces[0].side, side);
         assert_eq!(split.pieces[0].corners, (0..8).collect::<Vec<_>>());
     }
-    assert_eq!(split_polygon(&u[..2], &plane(Vector3::x(), 0.5)), Err(PolygonSplitError::TooFewCorners(2)));
+    assert_eq!(split_polygon(&u[..2], &plane(Vector3::x(), 0.5), 0.0), Err(PolygonSplitError::TooFewCorners(2)));
     let line = flat(&[[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]);
-    assert_eq!(split_polygon(&line, &plane(Vector3::x(), 0.5)), Err(PolygonSplitError::Degenerate));
+    assert_eq!(split_polygon(&line, &plane(Vector3::x(), 0.5), 0.0), Err(PolygonSplitError::Degenerate));
 }
 
 /// The U turned about an oblique axis and moved, cut by the plane y = 2 carried along and then
@@ -105,12 +105,12 @@ fn a_turned_and_moved_u_splits_as_the_flat_one() {
     let moved: Vec<Point3<f64>> = flat(&U).iter().map(|p| turn * p + shift).collect();
     let normal = turn * Vector3::z();
     let carried = plane(Vector3::y(), 2.0).map(|p| turn * p + shift);
-    let split = split_polygon(&moved, &carried).unwrap();
+    let split = split_polygon(&moved, &carried, 0.0).unwrap();
     close(&pieces(&split, &normal), &[(-1, 5.0), (1, 1.0), (1, 1.0)]);
     let tilt = Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(normal), 0.1);
     let centre = turn * Point3::new(1.5, 2.0, 0.0) + shift;
     let tilted = carried.map(|p| centre + tilt * (p - centre));
-    let split = split_polygon(&moved, &tilted).unwrap();
+    let split = split_polygon(&moved, &tilted, 0.0).unwrap();
     let found = pieces(&split, &normal);
     assert_eq!(found.iter().map(|p| p.0).collect::<Vec<_>>(), vec![-1, 1, 1], "{found:?}");
     assert!((found.iter().map(|p| p.1).sum::<f64>() - 7.0).abs() < 1e-12);
@@ -143,7 +143,7 @@ fn random_stars_split_into_pieces_that_tile_them() {
             let j = if i == j { (j + n / 2) % n } else { j };
             [star[i], star[i] + Vector3::z(), star[j]]
         };
-        let split = split_polygon(&star, &cut).unwrap_or_else(|e| panic!("trial {trial}: {e}"));
+        let split = split_polygon(&star, &cut, 0.0).unwrap_or_else(|e| panic!("trial {trial}: {e}"));
         let found = pieces(&split, &Vector3::z());
         let total = area(&star, &Vector3::z());
         let sum: f64 = found.iter().map(|p| p.1).sum();
