@@ -28,7 +28,8 @@
 //! - [`split_polygon`] (module `polygon_split`): a planar polygon, convex or not, split by a plane
 //!   into its pieces on each side, sides exact: the face step of cutting general polyhedra (DG);
 //!   [`split_element`] (module `element_split`): the element step, a closed polyhedron split
-//!   into its connected children, capped by the section.
+//!   into its connected children, capped by the section; [`split_mesh_by_plane`] (module
+//!   `mesh_split`): the mesh step, every element a plane crosses split, the section uncoupled.
 //!
 //! The library performs no file or terminal I/O and reports bad input as
 //! [`GeometryError`] values naming the offending triangle, edge, vertex or OBJ line.
@@ -42,6 +43,7 @@ mod hex_slice;
 mod inside;
 mod merge;
 mod mesh;
+mod mesh_split;
 mod moments;
 mod obj;
 mod overlap;
@@ -67,6 +69,7 @@ pub use hex_slice::{
 pub use inside::{InsideTester, polygon_winding_number};
 pub use merge::{MergeReport, merge_small_elements};
 pub use mesh::TriangleMesh;
+pub use mesh_split::{MeshSplit, MeshSplitError, split_mesh_by_plane};
 pub use moments::{
     Frame, MAX_MOMENT_DEGREE, element_frame, element_moments, element_moments_from_faces, element_volume_centroid,
     face_area_normal_centroid, face_moments, monomial_exponents, monomial_index, num_monomials, shift_moments,
