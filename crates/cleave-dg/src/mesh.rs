@@ -15,6 +15,8 @@ use cleave_geometry::{
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 
+mod cut;
+
 /// The numerical flux on interior faces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Flux {
@@ -199,6 +201,10 @@ pub struct DgMesh {
     element_faces: Vec<Vec<(u32, bool)>>,
     /// Seconds spent choosing η (assemblies and Cholesky attempts), part of `new`.
     penalty_search_seconds: Real,
+    /// Topology changes so far (`Cuttable::cut`).
+    epoch: u64,
+    /// Per face of `mesh`: whether it lies on a cut (rendered as a cut face).
+    cut_faces: Vec<bool>,
 }
 
 impl std::fmt::Debug for DgMesh {
@@ -346,7 +352,10 @@ impl DgMesh {
             has_dirichlet,
             element_faces,
             penalty_search_seconds: 0.0,
+            epoch: 0,
+            cut_faces: Vec::new(),
         };
+        this.cut_faces = vec![false; this.mesh.faces.len()];
         let search = std::time::Instant::now();
         let mut check: Option<DefinitenessCheck> = None;
         // The penalty doubling; the Dirichlet load depends on η, so it is built with the final η.
@@ -822,7 +831,7 @@ impl Discretization for DgMesh {
     }
 
     fn epoch(&self) -> u64 {
-        0
+        self.epoch
     }
 
     fn mass(&self) -> &Mass {
