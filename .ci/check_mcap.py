@@ -20,9 +20,10 @@ edge in four triangles (two coinciding sheets of a cut that ends inside the mate
 Both counts are printed per failing piece and in total, and both must be 0.
 --expect-rigid-at-end: the last /events `rigid` event (the runner's count of hand-offs, "... N rigid
 now") leaves at least one rigid body: some pieces end the run on the rigid-body engine.
---expect-bounce H: after the first /events `impact` event (a static impact on a rigid fragment),
-the recorded surface's lowest point (/stats surface.min_z) rises at least H metres above the ground
-before it comes down again: the body bounced.
+--expect-bounce H: between the first /events `impact` event (a static impact on a rigid fragment)
+and the next one (or the end), the recorded surface's lowest point (/stats surface.min_z, the
+height above the ground plane z = 0 of the scenes checked) rises at least H metres: the body
+bounced off that impact.
 --energy-after-last-cut PCT: E0 is /stats energy.total at the first step at or after the time of
 the last /events `cut` event; at no later step may the total energy exceed E0 + PCT/100 * |E0|.
 At the end, one line sums up what was checked.
@@ -45,7 +46,7 @@ def main() -> int:
     energy_pct = (float(sys.argv[sys.argv.index("--energy-after-last-cut") + 1])
                   if "--energy-after-last-cut" in sys.argv else None)
     bounce = float(sys.argv[sys.argv.index("--expect-bounce") + 1]) if "--expect-bounce" in sys.argv else None
-    first_impact = None  # the time of the first `impact` event
+    impact_times = []  # the times of the `impact` events
     counts = {}
     stats = []
     cuts = 0
@@ -67,8 +68,8 @@ def main() -> int:
                     surfaces.append((message.log_time, data))
             elif channel.topic == "/stats":
                 stats.append(data)
-            elif channel.topic == "/events" and data["kind"] == "impact" and first_impact is None:
-                first_impact = data["time"]
+            elif channel.topic == "/events" and data["kind"] == "impact":
+                impact_times.append(data["time"])
             elif channel.topic == "/events" and data["kind"] == "rigid":
                 last_rigid = data["message"]
             elif channel.topic == "/events" and data["kind"] in ("cut", "fracture"):
@@ -99,9 +100,12 @@ def main() -> int:
     if bounce is not None:
         name = f"--expect-bounce {bounce:g} (the lowest point rises after the first impact)"
         checked.append(name)
-        after = [s["surface"]["min_z"] for s in stats if first_impact is not None and s["time"] > first_impact]
+        first_impact = impact_times[0] if impact_times else None
+        following = next((t for t in impact_times if first_impact is not None and t > first_impact), float("inf"))
+        after = [s["surface"]["min_z"] for s in stats
+                 if first_impact is not None and first_impact < s["time"] <= following]
         height = max(after) if after else float("nan")
-        print(f"first impact at {first_impact} s; highest lowest point after it: {height:.4f} m")
+        print(f"first impact at {first_impact} s, next at {following} s; highest lowest point between: {height:.4f} m")
         if not after or not height >= bounce:
             failed.append(name)
     if energy_pct is not None:

@@ -101,6 +101,26 @@ fn an_oblique_plane_cuts_the_box_in_two_carrying_the_field_exactly() {
     }
 }
 
+/// A plane along the faces between elements (x = 0.1 in the box's frame) splits no element: it
+/// uncouples those faces, leaving two pieces whose surfaces show them as cut faces.
+#[test]
+fn a_plane_along_element_faces_uncouples_them_as_cut_faces() {
+    let mut mesh = body(1, Flux::InteriorPenalty);
+    let elements = mesh.num_frames();
+    let point = turn() * Point3::new(0.1, 0.1, 0.1) + SHIFT;
+    let change = mesh.cut(&CutSurface::Plane { point, normal: turn() * Vector3::x() }).unwrap();
+    assert_eq!((change.epoch, mesh.num_frames()), (1, elements));
+    let pieces = mesh.pieces();
+    assert_eq!(pieces.len(), 2);
+    let surface = mesh.surface().unwrap();
+    for index in 0..2 {
+        // Four faces of 0.1 × 0.1 on the cut, two triangles each.
+        let cut =
+            (0..surface.triangles.len()).filter(|&t| surface.piece[t] as usize == index && surface.on_cut[t]).count();
+        assert_eq!(cut, 8, "piece {index}");
+    }
+}
+
 #[test]
 fn a_plane_missing_the_body_changes_nothing_and_bad_cuts_are_refused() {
     let mut mesh = body(1, Flux::InteriorPenalty);

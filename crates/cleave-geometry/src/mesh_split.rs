@@ -110,18 +110,22 @@ pub fn split_mesh_by_plane(
     // across (the same corners the other way round); everything else is boundary.
     let mut faces: Vec<PolyFace> = Vec::new();
     let mut face_source = Vec::new();
-    let mut waiting: HashMap<Vec<u32>, usize> = HashMap::new();
+    // Keyed by the old face and the corner set; the twin must be the same cycle reversed.
+    let mut waiting: HashMap<(u32, Vec<u32>), usize> = HashMap::new();
     for (element, polygons) in element_faces.into_iter().enumerate() {
         for (polygon, source) in polygons {
             let coupled = source.is_some_and(|f| mesh.faces[f as usize].outer.is_some() && !in_plane[f as usize]);
-            if coupled {
-                let mut key = polygon.clone();
-                key.sort_unstable();
-                if let Some(index) = waiting.remove(&key) {
+            if let (true, Some(f)) = (coupled, source) {
+                let mut corners = polygon.clone();
+                corners.sort_unstable();
+                if let Some(index) = waiting.remove(&(f, corners.clone())) {
+                    if !is_reversed_cycle(&faces[index].polygon, &polygon) {
+                        return Err(MeshSplitError::UnmatchedFace { face: f });
+                    }
                     faces[index].outer = Some(element as u32);
                     continue;
                 }
-                waiting.insert(key, faces.len());
+                waiting.insert((f, corners), faces.len());
             }
             faces.push(PolyFace { polygon, inner: element as u32, outer: None });
             face_source.push(source);
@@ -139,4 +143,13 @@ pub fn split_mesh_by_plane(
         split_elements,
         uncoupled_faces,
     })
+}
+
+/// Whether `b` is the cycle `a` walked the other way round (from any corner).
+fn is_reversed_cycle(a: &[u32], b: &[u32]) -> bool {
+    let n = a.len();
+    n == b.len()
+        && b.first()
+            .and_then(|first| a.iter().position(|v| v == first))
+            .is_some_and(|start| (0..n).all(|k| b[k] == a[(start + n - k) % n]))
 }

@@ -56,6 +56,12 @@ pub enum StepErrorKind {
         /// its node count
         nodes: usize,
     },
+    /// A node listed in two bodies of an inertia relief solve (the bodies must be disjoint).
+    #[error("node {node} is in two inertia relief bodies")]
+    OverlappingBodies {
+        /// the node
+        node: u32,
+    },
     /// A load vector (the static load, the constant extra load of the constraints) whose length
     /// is not the system's number of scalar DOFs.
     #[error("{what} has length {len} but the system has {dofs} DOFs")]

@@ -147,6 +147,9 @@ pub fn solve_inertia_relief(
             return Err(StepErrorKind::SingularBody { body: index, nodes: nodes.len() });
         };
         let (acceleration, angular) = (force / body_mass, spin.solve(&moment));
+        if let Some(&node) = nodes.iter().find(|&&i| !held[i as usize]) {
+            return Err(StepErrorKind::OverlappingBodies { node });
+        }
         for &i in nodes {
             let k = 3 * i as usize;
             let r = at(rest, i) - centre;
@@ -174,14 +177,14 @@ fn three_two_one(nodes: &[u32], rest: &[Real], centre: &Vector3<Real>) -> Vec<(u
         let k = 3 * i as usize;
         Vector3::new(rest[k], rest[k + 1], rest[k + 2])
     };
-    let nearest = |key: &dyn Fn(u32) -> Real| {
+    let least_by = |key: &dyn Fn(u32) -> Real| {
         nodes.iter().copied().min_by(|&a, &b| key(a).total_cmp(&key(b))).expect("a body has nodes")
     };
-    let a = nearest(&|i| (at(i) - centre).norm_squared());
-    let b = nearest(&|i| -(at(i) - at(a)).norm_squared());
+    let a = least_by(&|i| (at(i) - centre).norm_squared());
+    let b = least_by(&|i| -(at(i) - at(a)).norm_squared());
     let d = at(b) - at(a);
     let along = d.iamax();
-    let c = nearest(&|i| -d.cross(&(at(i) - at(a))).amax());
+    let c = least_by(&|i| -d.cross(&(at(i) - at(a))).amax());
     let turn = d.cross(&(at(c) - at(a)));
     let mut held: Vec<(usize, Real)> = (0..3).map(|k| (3 * a as usize + k, 0.0)).collect();
     held.extend((0..3).filter(|&k| k != along).map(|k| (3 * b as usize + k, 0.0)));

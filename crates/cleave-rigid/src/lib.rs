@@ -385,16 +385,25 @@ impl RigidWorld {
             return returned;
         }
         if self.settings.impact == ImpactResponse::Keep {
-            let before: Vec<Vector3<Real>> =
-                self.fragments.iter().map(|f| from_glam(self.world.bodies[f.body].linvel())).collect();
+            // Velocities and turns before the step: the contacts are found at the poses the
+            // step starts from, so their world normals are turned into a fragment's frame by
+            // its rotation then.
+            let before: Vec<(Vector3<Real>, rapier3d_f64::math::Rotation)> = self
+                .fragments
+                .iter()
+                .map(|f| {
+                    let body = &self.world.bodies[f.body];
+                    (from_glam(body.linvel()), body.position().rotation)
+                })
+                .collect();
             self.world.step();
             for i in 0..self.fragments.len() {
                 if self.contact_impulse(i) > self.settings.return_speed * self.fragments[i].mass {
-                    let rotation = self.world.bodies[self.fragments[i].body].position().rotation;
-                    let contacts = self.contact_points(i);
+                    let rotation = before[i].1;
+                    let contacts = self.contact_points(i, rotation);
                     let net = contacts.iter().map(|(_, j)| j).sum::<Vector3<Real>>();
                     let net = from_glam(rotation * to_glam(&net));
-                    let approach_speed = (-before[i].dot(&net) / net.norm().max(Real::MIN_POSITIVE)).max(0.0);
+                    let approach_speed = (-before[i].0.dot(&net) / net.norm().max(Real::MIN_POSITIVE)).max(0.0);
                     self.impacts.push(Impact { fragment: i, contacts, approach_speed });
                 }
             }
@@ -493,11 +502,15 @@ impl RigidWorld {
     }
 
     /// Fragment `index`'s contact points in the last step with the normal impulse each gave it,
-    /// in its own frame (see [`Impact`]). Rapier's manifolds hold each point in its collider's
-    /// frame, which for a fragment is its body's (the collider has no offset).
-    fn contact_points(&self, index: usize) -> Vec<(Point3<Real>, Vector3<Real>)> {
+    /// in its own frame (see [`Impact`]), `rotation` its turn when the contacts were found.
+    /// Rapier's manifolds hold each point in its collider's frame, which for a fragment is its
+    /// body's (the collider has no offset).
+    fn contact_points(
+        &self,
+        index: usize,
+        rotation: rapier3d_f64::math::Rotation,
+    ) -> Vec<(Point3<Real>, Vector3<Real>)> {
         let fragment = &self.fragments[index];
-        let rotation = self.world.bodies[fragment.body].position().rotation;
         let mut contacts = Vec::new();
         for pair in self.world.narrow_phase.contact_pairs_with(fragment.collider) {
             let first = pair.collider1 == fragment.collider;

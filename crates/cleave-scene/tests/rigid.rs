@@ -127,8 +127,8 @@ fn halves_at_rest_against_each_other_go_rigid_as_one_body() {
 
 /// The paper's pig (`impact: Static`): the block falls rigid and meets the ground as a rigid
 /// body, which bounces (restitution 0.5) instead of returning to the FE model; the impact's
-/// rebound rises at least `e² Δz / 2` and less than it fell `Δz` (no energy gained: the energy
-/// never grows; rapier's end-of-step restitution lands above `e²`: measured 0.36 `Δz` for
+/// rebound rises at least `e² Δz / 2` and less than `0.6 Δz` (the energy never grows;
+/// rapier's end-of-step restitution lands above `e²`: measured 0.36 `Δz` for
 /// `e = 0.5`, and 0.52 `Δz` for a smaller block), and the static analysis of the impact breaks the block only when its strength
 /// is below the impact's stress.
 #[test]
@@ -174,7 +174,7 @@ fn a_static_impact_bounces_the_block_and_breaks_it_only_when_weaker_than_the_imp
     let fall = 0.35 - lowest;
     let rise = highest - lowest;
     println!("fell {fall:.4} m, rose {rise:.4} m");
-    assert!(rise >= 0.5 * 0.25 * fall && rise < fall, "rose {rise} m after falling {fall} m");
+    assert!(rise >= 0.5 * 0.25 * fall && rise < 0.6 * fall, "rose {rise} m after falling {fall} m");
     // A strength far above any stress of the impact: no break; far below it: a break at the
     // impact's step.
     assert!(!run(Some(1e12)).0, "broke at 1e12 Pa");

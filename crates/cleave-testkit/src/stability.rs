@@ -256,7 +256,8 @@ fn step_failure(error: StepError) -> Verdict {
         | StepErrorKind::NodeOutOfRange { .. }
         | StepErrorKind::PinTargets { .. }
         | StepErrorKind::SurfacePieces { .. }
-        | StepErrorKind::SingularBody { .. }) => Verdict::Error(kind.to_string()),
+        | StepErrorKind::SingularBody { .. }
+        | StepErrorKind::OverlappingBodies { .. }) => Verdict::Error(kind.to_string()),
     }
 }
 

@@ -64,13 +64,13 @@ fn a_push_on_one_end_of_a_free_bar_leaves_the_stress_falling_linearly_to_the_oth
         let expected = -force / (WIDTH * WIDTH * YOUNG) * expected_fraction;
         let strain = axial_strain(&bar, u, x - CUBE, x + CUBE);
         println!("x = {x}: strain {strain:.4e}, analytic {expected:.4e}");
-        assert!((strain - expected).abs() < 0.01 * expected.abs(), "x = {x}: {strain} vs {expected}");
+        assert!((strain - expected).abs() < 1e-3 * expected.abs(), "x = {x}: {strain} vs {expected}");
     }
     // The support takes nothing: the strain energy is that of the analytic field,
     // ∫ σ² A / (2E) dx = F² L / (6 E A).
     let analytic = force * force * LENGTH / (6.0 * YOUNG * WIDTH * WIDTH);
     println!("strain energy {:.4e}, analytic {analytic:.4e}", solution.strain_energy);
-    assert!((solution.strain_energy - analytic).abs() < 0.01 * analytic);
+    assert!((solution.strain_energy - analytic).abs() < 2e-3 * analytic);
 }
 
 /// Two bars in one mesh, a gap of one cube between them; a tilted push on the first's end.
@@ -121,6 +121,11 @@ fn a_body_left_out_is_held_and_the_support_takes_no_load() {
     println!("strain energy: support chosen {:.9e}, corners {:.9e}", relieved.strain_energy, corners.strain_energy);
     assert!((relieved.strain_energy - corners.strain_energy).abs() < 1e-9 * corners.strain_energy);
 
+    // Bodies must be disjoint.
+    assert!(matches!(
+        solve_inertia_relief(&bars, &load, &[first.clone(), first.clone()]),
+        Err(StepErrorKind::OverlappingBodies { .. })
+    ));
     // A body with its nodes on one line has no inertia to balance a load with.
     let line: Vec<u32> =
         first.iter().copied().filter(|&n| rest[3 * n as usize + 1] == 0.0 && rest[3 * n as usize + 2] == 0.0).collect();

@@ -82,8 +82,18 @@ impl Cuttable for DgMesh {
                 pattern_changed: false,
             });
         }
-        let cut_faces: Vec<bool> =
-            split.face_source.iter().map(|s| s.is_none_or(|f| self.cut_faces[f as usize])).collect();
+        // On a cut: a piece of the section, a piece of a face already cut, or an interior face
+        // the plane ran along (coupled before, boundary now).
+        let cut_faces: Vec<bool> = split
+            .face_source
+            .iter()
+            .zip(&split.mesh.faces)
+            .map(|(source, face)| {
+                source.is_none_or(|f| {
+                    self.cut_faces[f as usize] || (self.mesh.faces[f as usize].outer.is_some() && face.outer.is_none())
+                })
+            })
+            .collect();
         // The penalty reached before (with its margin) is kept: the jumps already there keep
         // their energy. IP may still double it if a child makes the stiffness indefinite.
         let options = DgOptions { penalty: self.penalty, penalty_margin: 1.0, ..self.options };

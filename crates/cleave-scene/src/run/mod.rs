@@ -584,33 +584,39 @@ impl Simulation {
     }
 
     /// The static analysis of this step's impacts on rigid fragments (`impact: Static`, the
-    /// paper's pig; docs/math/rigid-fragments.md §5): each hit fragment's displacement under its
-    /// contact impulses by inertia relief, scaled so that its strain energy is the kinetic energy
-    /// of the approach (the energy method for impact), recorded as an `impact` event; with
-    /// `fracture`, the body breaks where the sum of those displacements stresses it beyond the
-    /// strength (every other node at rest, every frame unrotated: the analysis is in the rest
-    /// frame). Nothing of it enters the state.
+    /// paper's pig; docs/math/rigid-fragments.md §5), recorded as an `impact` event; with
+    /// `fracture` (only then is it solved): each hit fragment's displacement under its contact
+    /// impulses by inertia relief, scaled so that its strain energy is the kinetic energy of the
+    /// approach (the energy method for impact), and the body broken where the sum of those
+    /// displacements stresses it beyond the strength (every other node at rest, every frame
+    /// unrotated: the analysis is in the rest frame). Nothing of it enters the state.
     fn apply_static_impact(&mut self, impacts: Vec<rigid::ImpactLoad>) -> Result<(), SceneError> {
         let clock = Instant::now();
+        let strength = self.fracture.as_ref().map(|f| f.strength);
         let d = self.discretization.as_ref();
         let mut displacement = vec![0.0; 3 * d.num_nodes()];
         let mut messages = Vec::new();
         for impact in &impacts {
-            let step = self.integrator.steps_taken();
-            let solution = cleave_integrator::solve_inertia_relief(d, &impact.load, &impact.bodies)
-                .map_err(|kind| SceneError::Step { path: self.path.clone(), source: StepError { step, kind } })?;
-            let scale = if solution.strain_energy > 0.0 {
-                (impact.approach_energy / solution.strain_energy).sqrt()
-            } else {
-                0.0
-            };
-            displacement.iter_mut().zip(&solution.displacement).for_each(|(u, s)| *u += scale * s);
-            messages.push(format!(
-                "velocity change {:.3} m/s, {} pieces loaded, strain energy {:.4e} J",
+            let mut message = format!(
+                "velocity change {:.3} m/s, approach energy {:.4e} J, {} pieces loaded",
                 impact.velocity_change,
-                impact.bodies.len(),
-                impact.approach_energy
-            ));
+                impact.approach_energy,
+                impact.bodies.len()
+            );
+            // The analysis only feeds fracture: without a strength, the event alone.
+            if strength.is_some() {
+                let step = self.integrator.steps_taken();
+                let solution = cleave_integrator::solve_inertia_relief(d, &impact.load, &impact.bodies)
+                    .map_err(|kind| SceneError::Step { path: self.path.clone(), source: StepError { step, kind } })?;
+                let scale = if solution.strain_energy > 0.0 {
+                    (impact.approach_energy / solution.strain_energy).sqrt()
+                } else {
+                    0.0
+                };
+                displacement.iter_mut().zip(&solution.displacement).for_each(|(u, s)| *u += scale * s);
+                message += &format!(", strain energy {:.4e} J", scale * scale * solution.strain_energy);
+            }
+            messages.push(message);
         }
         let time = self.integrator.time();
         if let Some(recorder) = self.recorder.as_mut() {
@@ -622,7 +628,7 @@ impl Simulation {
             );
             recorder.event(time, "impact", &message)?;
         }
-        let Some(strength) = self.fracture.as_ref().map(|f| f.strength) else { return Ok(()) };
+        let Some(strength) = strength else { return Ok(()) };
         let x: Vec<Real> = d.rest_dofs().iter().zip(&displacement).map(|(r, u)| r + u).collect();
         let unrotated = vec![Matrix3::identity(); d.num_frames()];
         self.apply_fracture_at(strength, Some((&x, &unrotated)))
