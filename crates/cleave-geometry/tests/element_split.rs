@@ -3,6 +3,10 @@
 //! floor, a plane that only touches; every child closed (each directed edge met once the other
 //! way round), the children's volumes adding up to the element's.
 
+mod common;
+
+use common::plane;
+
 use cleave_geometry::{ElementSplit, FaceSource, SplitVertex, split_element};
 use nalgebra::{Point3, Rotation3, Unit, Vector3};
 use std::collections::HashMap;
@@ -23,15 +27,6 @@ fn prism(xy: &[[f64; 2]]) -> (Vec<Point3<f64>>, Vec<Vec<u32>>) {
 
 const U: [[f64; 2]; 8] =
     [[0.0, 0.0], [3.0, 0.0], [3.0, 3.0], [2.0, 3.0], [2.0, 1.0], [1.0, 1.0], [1.0, 3.0], [0.0, 3.0]];
-
-/// The plane `{p : p · normal = offset}` as three points, its right-hand normal along `normal`.
-fn plane(normal: Vector3<f64>, offset: f64) -> [Point3<f64>; 3] {
-    let n = normal.normalize();
-    let a = Point3::from(n * offset);
-    let t = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
-    let u = n.cross(&t).normalize();
-    [a, a + u, a + n.cross(&u)]
-}
 
 /// Per child: (side, volume), sorted; asserting each child is closed.
 fn children(split: &ElementSplit, vertices: &[Point3<f64>]) -> Vec<(i8, f64)> {

@@ -5,17 +5,10 @@
 
 mod common;
 
+use common::plane;
+
 use cleave_geometry::{PolyhedralMesh, UnionFind, hex_slice, split_mesh_by_plane};
 use nalgebra::{Point3, Rotation3, Unit, Vector3};
-
-/// The plane `{p : p · normal = offset}` as three points, its right-hand normal along `normal`.
-fn plane(normal: Vector3<f64>, offset: f64) -> [Point3<f64>; 3] {
-    let n = normal.normalize();
-    let a = Point3::from(n * offset);
-    let t = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
-    let u = n.cross(&t).normalize();
-    [a, a + u, a + n.cross(&u)]
-}
 
 /// Elements joined through coupled faces: the number of pieces.
 fn pieces(mesh: &PolyhedralMesh) -> usize {

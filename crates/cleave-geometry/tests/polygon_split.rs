@@ -7,7 +7,7 @@
 mod common;
 
 use cleave_geometry::{PolygonSplit, PolygonSplitError, split_polygon};
-use common::Rng;
+use common::{Rng, plane};
 use nalgebra::{Point3, Rotation3, Vector3};
 
 /// The area of a planar polygon (Newell), signed along `normal`.
@@ -33,16 +33,6 @@ fn pieces(split: &PolygonSplit, normal: &Vector3<f64>) -> Vec<(i8, f64)> {
 
 fn flat(xy: &[[f64; 2]]) -> Vec<Point3<f64>> {
     xy.iter().map(|p| Point3::new(p[0], p[1], 0.0)).collect()
-}
-
-/// The plane `{p : p · normal = offset}` as three points, its right-hand normal along `normal`.
-fn plane(normal: Vector3<f64>, offset: f64) -> [Point3<f64>; 3] {
-    let n = normal.normalize();
-    let a = Point3::from(n * offset);
-    let t = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
-    let u = n.cross(&t).normalize();
-    let v = n.cross(&u);
-    [a, a + u, a + v]
 }
 
 fn close(found: &[(i8, f64)], expected: &[(i8, f64)]) {

@@ -159,3 +159,13 @@ impl Rng {
         Point3::new(self.range(lo.x, hi.x), self.range(lo.y, hi.y), self.range(lo.z, hi.z))
     }
 }
+
+/// The plane `{p : p · normal = offset}` as three points, its right-hand normal along `normal`
+/// (the form the cutting functions take).
+pub fn plane(normal: Vector3<f64>, offset: f64) -> [Point3<f64>; 3] {
+    let n = normal.normalize();
+    let a = Point3::from(n * offset);
+    let t = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    let u = n.cross(&t).normalize();
+    [a, a + u, a + n.cross(&u)]
+}
