@@ -3,7 +3,7 @@
 //! general polyhedra (kaufmann2008 §8; docs/math/polygon-split.md, "The element step").
 
 use crate::UnionFind;
-use crate::polygon_split::{SplitCorner, split_polygon};
+use crate::polygon_split::{SplitCorner, clockwise_turn, newell_normal, split_polygon};
 use crate::predicates::{kept_axes, side_of_plane};
 use nalgebra::{Point2, Point3, Vector3};
 use std::collections::{BTreeMap, HashMap};
@@ -159,9 +159,7 @@ pub fn split_element(
             let side = if piece.side != 0 {
                 piece.side
             } else {
-                let normal: Vector3<f64> =
-                    (0..points.len()).map(|k| points[k].coords.cross(&points[(k + 1) % points.len()].coords)).sum();
-                if normal.dot(&plane_normal) > 0.0 { -1 } else { 1 }
+                if newell_normal(&points).dot(&plane_normal) > 0.0 { -1 } else { 1 }
             };
             by_side[usize::from(side > 0)].push(ChildFace { polygon: corners, source: FaceSource::Face(i) });
         }
@@ -258,26 +256,16 @@ fn chain_loops(
             }
             cycle.push(at);
             let ways = edges.get_mut(&at).filter(|w| !w.is_empty()).ok_or(ElementSplitError::OpenSection)?;
-            let back = flat(&from) - flat(&at);
-            let back_angle = back.y.atan2(back.x);
-            let pick = (0..ways.len())
-                .min_by(|&i, &j| {
-                    let turn = |w: &SplitVertex| {
-                        let d = flat(w) - flat(&at);
-                        let t = (back_angle - d.y.atan2(d.x)).rem_euclid(std::f64::consts::TAU);
-                        if t <= 0.0 { std::f64::consts::TAU } else { t }
-                    };
-                    turn(&ways[i]).total_cmp(&turn(&ways[j]))
-                })
-                .expect("ways is not empty");
+            let (here, back) = (flat(&at), flat(&from));
+            let turn = |w: &SplitVertex| clockwise_turn(&here, &back, &flat(w));
+            let pick =
+                (0..ways.len()).min_by(|&i, &j| turn(&ways[i]).total_cmp(&turn(&ways[j]))).expect("ways is not empty");
             let next = ways.swap_remove(pick);
             from = at;
             at = next;
         }
         let points: Vec<Point3<f64>> = cycle.iter().map(position).collect();
-        let area: f64 =
-            (0..points.len()).map(|k| points[k].coords.cross(&points[(k + 1) % points.len()].coords).dot(normal)).sum();
-        if area < 0.0 {
+        if newell_normal(&points).dot(normal) < 0.0 {
             return Err(ElementSplitError::SectionWithHole);
         }
         loops.push(cycle);

@@ -68,7 +68,7 @@ pub fn split_polygon(
     if n < 3 {
         return Err(PolygonSplitError::TooFewCorners(n));
     }
-    let normal: Vector3<f64> = (0..n).map(|i| points[i].coords.cross(&points[(i + 1) % n].coords)).sum();
+    let normal = newell_normal(points);
     let finite = points.iter().all(|p| p.coords.iter().all(|c| c.is_finite()));
     // A NaN norm (a non-finite corner) fails the comparison too.
     if !finite || normal.norm().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
@@ -165,22 +165,30 @@ pub fn split_polygon(
 /// At corner `at`, entered from `from`: the index into `outgoing[at]` of the edge met first
 /// turning clockwise from the direction back to `from`.
 fn next_slot(flat: &[Point2<f64>], outgoing: &[Vec<usize>], from: usize, at: usize) -> usize {
-    let back = flat[from] - flat[at];
-    let back_angle = back.y.atan2(back.x);
-    let tau = std::f64::consts::TAU;
     let mut best = (0, f64::INFINITY);
     for (slot, &to) in outgoing[at].iter().enumerate() {
-        let d = flat[to] - flat[at];
-        // Clockwise angle from `back` to `d`, in (0, 2π]: the way back itself comes last.
-        let mut turn = (back_angle - d.y.atan2(d.x)).rem_euclid(tau);
-        if turn <= 0.0 {
-            turn = tau;
-        }
+        let turn = clockwise_turn(&flat[at], &flat[from], &flat[to]);
         if turn < best.1 {
             best = (slot, turn);
         }
     }
     best.0
+}
+
+/// The clockwise angle at `at` from the direction to `back` to the direction to `to`, in
+/// (0, 2π]: the way back itself comes last. Walking a planar graph by the least such turn keeps
+/// the face on the left (the tracing here and the cap loops of `split_element`).
+pub(crate) fn clockwise_turn(at: &Point2<f64>, back: &Point2<f64>, to: &Point2<f64>) -> f64 {
+    let (b, d) = (back - at, to - at);
+    let turn = (b.y.atan2(b.x) - d.y.atan2(d.x)).rem_euclid(std::f64::consts::TAU);
+    if turn <= 0.0 { std::f64::consts::TAU } else { turn }
+}
+
+/// The normal of a planar polygon by Newell's formula, `Σ p_i × p_{i+1}` (twice its area
+/// along the unit normal).
+pub(crate) fn newell_normal(points: &[Point3<f64>]) -> Vector3<f64> {
+    let n = points.len();
+    (0..n).map(|i| points[i].coords.cross(&points[(i + 1) % n].coords)).sum()
 }
 
 /// Whether `p` lies inside the simple counter-clockwise polygon `polygon` (crossing number).
