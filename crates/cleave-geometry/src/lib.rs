@@ -69,7 +69,7 @@ pub use hex_slice::{
 pub use inside::{InsideTester, polygon_winding_number};
 pub use merge::{MergeReport, merge_small_elements};
 pub use mesh::TriangleMesh;
-pub use mesh_split::{MeshSplit, MeshSplitError, split_mesh_by_plane};
+pub use mesh_split::{MeshSplit, MeshSplitError, cut_mesh_by_polygon, split_mesh_by_plane};
 pub use moments::{
     Frame, MAX_MOMENT_DEGREE, element_frame, element_moments, element_moments_from_faces, element_volume_centroid,
     face_area_normal_centroid, face_moments, monomial_exponents, monomial_index, num_monomials, shift_moments,

@@ -1,26 +1,29 @@
-//! A polyhedral mesh cut through by a plane: every element it crosses split into its children
-//! (`split_element`), the crossings shared between neighbours through their edges, the section
-//! uncoupled (each side's cap a boundary face), and each new element's parent: the mesh step of
-//! cutting DG's general polyhedra (kaufmann2008 §8; docs/math/polygon-split.md).
+//! A polyhedral mesh cut by a plane, or by a bounded convex polygon in it: every element whose
+//! section meets the cut split into its children (`split_element`), the crossings shared
+//! between neighbours through their edges, the section uncoupled where the polygon covers it and
+//! coupled where it does not (so a cut may end inside an element and material stays joined
+//! around its end), and each new element's parent: the mesh step of cutting DG's general
+//! polyhedra (kaufmann2008 §8; docs/math/polygon-split.md, "The mesh step").
 
 use crate::element_split::{ElementSplitError, FaceSource, SplitVertex, split_element};
+use crate::polygon_split::{newell_normal, split_polygon};
 use crate::polyhedral::{PolyFace, PolyhedralMesh};
 use crate::predicates::side_of_plane;
-use nalgebra::Point3;
-use std::collections::{BTreeMap, HashMap};
+use nalgebra::{Point3, Vector3};
+use std::collections::HashMap;
 
-/// A mesh cut by a plane.
+/// A mesh cut by a plane or a polygon.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MeshSplit {
-    /// The cut mesh: the old vertices first (same indices), then the crossings.
+    /// The cut mesh: the old vertices first (same indices), then the new ones.
     pub mesh: PolyhedralMesh,
     /// Per new element, the old element it lies in.
     pub parent: Vec<u32>,
-    /// Per new face, the old face it is (a piece of), `None` for a piece of the cut.
+    /// Per new face, the old face it is (a piece of), `None` for a piece of the section.
     pub face_source: Vec<Option<u32>>,
     /// Old elements split into more than one child.
     pub split_elements: usize,
-    /// Old interior faces lying in the plane, uncoupled by the cut.
+    /// Old interior faces lying in the plane that the cut uncoupled (wholly or in part).
     pub uncoupled_faces: usize,
 }
 
@@ -39,9 +42,15 @@ pub enum MeshSplitError {
     /// it differently: a mesh that is not conforming there).
     #[error("a piece of interior face {face} has no twin across it: is the mesh conforming there?")]
     UnmatchedFace {
-        /// the old face
+        /// the old face (`u32::MAX`: a piece of an element's section)
         face: u32,
     },
+    /// The cutting polygon is degenerate, not planar, not convex, or not finite.
+    #[error("the cutting polygon must be finite, planar, convex and enclose an area")]
+    BadPolygon,
+    /// A piece of the section or of a face could not be split by the polygon's sides.
+    #[error("splitting a face by the cutting polygon's sides: {0}")]
+    Cover(crate::PolygonSplitError),
 }
 
 /// Splits every element of `mesh` that the plane through `plane` crosses, vertices within
@@ -54,90 +63,430 @@ pub fn split_mesh_by_plane(
     plane: &[Point3<f64>; 3],
     tolerance: f64,
 ) -> Result<MeshSplit, MeshSplitError> {
-    let mut vertices = mesh.vertices.clone();
-    let mut crossing_ids: BTreeMap<(u32, u32), u32> = BTreeMap::new();
-    let mut parent = Vec::new();
-    // Per new element, its outward faces: (polygon over new vertex ids, old face or None).
-    let mut element_faces: Vec<Vec<(Vec<u32>, Option<u32>)>> = Vec::new();
+    cut_mesh(mesh, plane, None, tolerance)
+}
+
+/// Cuts `mesh` by the planar convex polygon `polygon` (corners in order, either orientation),
+/// vertices within `tolerance` of its plane or of the planes through its sides (normal to it)
+/// counting as on them.
+///
+/// An element is split by the polygon's plane when its section meets the polygon in an area;
+/// on the section, the part the polygon covers uncouples the two sides and the rest couples them
+/// (the section cut along the polygon's sides): a polygon ending inside an element leaves its
+/// children joined around the end. A face the plane crosses between a split element and a
+/// whole one is split too (pieces coupled to the whole element), an interior face lying in the
+/// plane is uncoupled where the polygon covers it, and every vertex created on an edge is
+/// inserted into every face holding that edge, so the new mesh is conforming.
+pub fn cut_mesh_by_polygon(
+    mesh: &PolyhedralMesh,
+    polygon: &[Point3<f64>],
+    tolerance: f64,
+) -> Result<MeshSplit, MeshSplitError> {
+    let cover = Cover::new(polygon, tolerance).ok_or(MeshSplitError::BadPolygon)?;
+    let plane = cover.plane;
+    cut_mesh(mesh, &plane, Some(&cover), tolerance)
+}
+
+/// The convex polygon a cut covers: its plane and the planes through its sides, normal to it,
+/// each with the side its interior lies on.
+struct Cover {
+    plane: [Point3<f64>; 3],
+    sides: Vec<([Point3<f64>; 3], i8)>,
+    lo: Point3<f64>,
+    hi: Point3<f64>,
+}
+
+impl Cover {
+    fn new(polygon: &[Point3<f64>], tolerance: f64) -> Option<Self> {
+        if polygon.len() < 3 || polygon.iter().any(|p| p.coords.iter().any(|c| !c.is_finite())) {
+            return None;
+        }
+        let normal = newell_normal(polygon);
+        let length = normal.norm();
+        if !(length > 0.0) {
+            return None;
+        }
+        let n = normal / length;
+        let centroid = Point3::from(polygon.iter().map(|p| p.coords).sum::<Vector3<f64>>() / polygon.len() as f64);
+        let diameter = polygon.iter().map(|p| (p - centroid).norm()).fold(0.0, f64::max);
+        let helper = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+        let u = n.cross(&helper).normalize() * diameter;
+        let plane = [centroid, centroid + u, centroid + n.cross(&u)];
+        if polygon.iter().any(|p| side_of_plane(&plane, p, tolerance) != 0) {
+            return None;
+        }
+        let mut sides = Vec::new();
+        for (k, a) in polygon.iter().enumerate() {
+            let b = polygon[(k + 1) % polygon.len()];
+            if (b - a).norm() <= tolerance {
+                continue;
+            }
+            let side_plane = [*a, b, a + n * diameter];
+            let inside = side_of_plane(&side_plane, &centroid, tolerance);
+            // Convex: no corner beyond a side.
+            if inside == 0 || polygon.iter().any(|p| side_of_plane(&side_plane, p, tolerance) == -inside) {
+                return None;
+            }
+            sides.push((side_plane, inside));
+        }
+        let (mut lo, mut hi) = (polygon[0], polygon[0]);
+        for p in polygon {
+            lo = lo.inf(p);
+            hi = hi.sup(p);
+        }
+        let margin = Vector3::repeat(tolerance);
+        Some(Self { plane, sides, lo: lo - margin, hi: hi + margin })
+    }
+
+    /// Whether the box `[lo, hi]` may meet the polygon.
+    fn may_meet(&self, lo: &Point3<f64>, hi: &Point3<f64>) -> bool {
+        (0..3).all(|i| lo[i] <= self.hi[i] && hi[i] >= self.lo[i])
+    }
+
+    /// The area of the planar polygon `points` inside the cover.
+    fn covered_area(&self, points: &[Point3<f64>], tolerance: f64) -> Result<f64, MeshSplitError> {
+        let mut inside = vec![points.to_vec()];
+        for (side_plane, side) in &self.sides {
+            let mut next = Vec::new();
+            for piece in &inside {
+                let split = split_polygon(piece, side_plane, tolerance).map_err(MeshSplitError::Cover)?;
+                for p in split.pieces.iter().filter(|p| p.side == *side) {
+                    next.push(p.corners.iter().map(|&k| split.corners[k].1).collect());
+                }
+            }
+            inside = next;
+        }
+        Ok(inside.iter().map(|p| newell_normal(p).norm() / 2.0).sum())
+    }
+}
+
+/// The vertices a cut creates, each once: crossings of old edges with the plane, and points
+/// where the cover's sides cross edges of the section; each is recorded on the segment it
+/// splits so that every face holding that segment takes it.
+struct NewVertices {
+    vertices: Vec<Point3<f64>>,
+    /// Segment (smaller id first) ↦ the vertex inside it.
+    inside: HashMap<(u32, u32), u32>,
+}
+
+impl NewVertices {
+    /// The vertex on segment `(a, b)` at `position`, made if the segment has none yet.
+    fn on_segment(&mut self, a: u32, b: u32, position: impl FnOnce() -> Point3<f64>) -> u32 {
+        *self.inside.entry((a.min(b), a.max(b))).or_insert_with(|| {
+            self.vertices.push(position());
+            (self.vertices.len() - 1) as u32
+        })
+    }
+
+    /// `polygon` with every vertex made inside one of its edges inserted, in order.
+    fn refine(&self, polygon: &[u32]) -> Vec<u32> {
+        if self.inside.is_empty() {
+            return polygon.to_vec();
+        }
+        let mut out = Vec::with_capacity(polygon.len());
+        for (k, &a) in polygon.iter().enumerate() {
+            out.push(a);
+            self.between(a, polygon[(k + 1) % polygon.len()], &mut out);
+        }
+        out
+    }
+
+    fn between(&self, a: u32, b: u32, out: &mut Vec<u32>) {
+        // Vertices are made after the segment's ends, so the recursion ends.
+        if let Some(&v) = self.inside.get(&(a.min(b), a.max(b))) {
+            self.between(a, v, out);
+            out.push(v);
+            self.between(v, b, out);
+        }
+    }
+
+    /// Splits the section polygon `polygon` (over vertex ids) by the cover's sides: its pieces,
+    /// each with whether the cover covers it. Every piece is split by every side, so a segment
+    /// two pieces share is split at one vertex.
+    fn split_by_cover(
+        &mut self,
+        polygon: Vec<u32>,
+        cover: &Cover,
+        tolerance: f64,
+    ) -> Result<Vec<(Vec<u32>, bool)>, MeshSplitError> {
+        let mut pieces = vec![(polygon, true)];
+        for (side_plane, side) in &cover.sides {
+            let mut next = Vec::with_capacity(pieces.len() + 1);
+            for (piece, covered) in pieces {
+                let points: Vec<Point3<f64>> = piece.iter().map(|&v| self.vertices[v as usize]).collect();
+                let split = split_polygon(&points, side_plane, tolerance).map_err(MeshSplitError::Cover)?;
+                let ids: Vec<u32> = split
+                    .corners
+                    .iter()
+                    .map(|&(corner, position, _)| match corner {
+                        crate::SplitCorner::Vertex(j) => piece[j],
+                        crate::SplitCorner::Crossing(j) => {
+                            self.on_segment(piece[j], piece[(j + 1) % piece.len()], || position)
+                        }
+                    })
+                    .collect();
+                for p in &split.pieces {
+                    next.push((p.corners.iter().map(|&k| ids[k]).collect(), covered && p.side == *side));
+                }
+            }
+            pieces = next;
+        }
+        Ok(pieces)
+    }
+}
+
+/// Per old element: its new elements, each with its outward faces (polygon over vertex ids,
+/// old face or `None` for a cap) and, for a split element, its caps on the `+1` side paired with
+/// the child across.
+struct Parted {
+    /// New element ids of the children, in order.
+    first: u32,
+    children: Vec<Vec<(Vec<u32>, Option<u32>)>>,
+    /// (+ child, − child, cap polygon outward from the + child).
+    caps: Vec<(u32, u32, Vec<u32>)>,
+}
+
+fn cut_mesh(
+    mesh: &PolyhedralMesh,
+    plane: &[Point3<f64>; 3],
+    cover: Option<&Cover>,
+    tolerance: f64,
+) -> Result<MeshSplit, MeshSplitError> {
+    let mut made = NewVertices { vertices: mesh.vertices.clone(), inside: HashMap::new() };
+    let element_faces = mesh.element_faces();
+    let mut parted: Vec<Parted> = Vec::with_capacity(mesh.num_elements);
+    let mut next_id = 0u32;
     let mut split_elements = 0;
-    for (e, faces) in mesh.element_faces().into_iter().enumerate() {
+    for (e, faces) in element_faces.iter().enumerate() {
         let outward: Vec<Vec<u32>> = faces
             .iter()
             .map(|f| if f.reversed { f.polygon.iter().rev().copied().collect() } else { f.polygon.to_vec() })
             .collect();
+        let whole = |next_id: &mut u32, outward: Vec<Vec<u32>>| {
+            let first = *next_id;
+            *next_id += 1;
+            Parted {
+                first,
+                children: vec![outward.into_iter().zip(faces).map(|(p, f)| (p, Some(f.face as u32))).collect()],
+                caps: Vec::new(),
+            }
+        };
+        if let Some(cover) = cover {
+            let (mut lo, mut hi) = (Point3::from([f64::MAX; 3]), Point3::from([f64::MIN; 3]));
+            for &v in outward.iter().flatten() {
+                lo = lo.inf(&mesh.vertices[v as usize]);
+                hi = hi.sup(&mesh.vertices[v as usize]);
+            }
+            if !cover.may_meet(&lo, &hi) {
+                parted.push(whole(&mut next_id, outward));
+                continue;
+            }
+        }
         let split = split_element(&mesh.vertices, &outward, plane, tolerance)
             .map_err(|source| MeshSplitError::Element { element: e, source })?;
-        if split.children.len() > 1 {
-            split_elements += 1;
+        if split.children.len() < 2 {
+            parted.push(whole(&mut next_id, outward));
+            continue;
         }
-        for child in split.children {
-            let polygons = child
-                .faces
-                .iter()
-                .map(|face| {
-                    let polygon = face
-                        .polygon
-                        .iter()
-                        .map(|v| match *v {
-                            SplitVertex::Old(i) => i,
-                            SplitVertex::Crossing(a, b) => *crossing_ids.entry((a, b)).or_insert_with(|| {
-                                vertices.push(split.crossings[&(a, b)]);
-                                (vertices.len() - 1) as u32
-                            }),
-                        })
-                        .collect();
-                    let source = match face.source {
-                        FaceSource::Face(i) => Some(faces[i].face as u32),
-                        FaceSource::Cap => None,
-                    };
-                    (polygon, source)
-                })
-                .collect();
-            parent.push(e as u32);
-            element_faces.push(polygons);
-        }
-    }
-    // An old interior face in the plane is cut along: both its sides become boundary.
-    let in_plane: Vec<bool> = mesh
-        .faces
-        .iter()
-        .map(|f| {
-            f.outer.is_some()
-                && f.polygon.iter().all(|&v| side_of_plane(plane, &mesh.vertices[v as usize], tolerance) == 0)
-        })
-        .collect();
-    // Faces: a piece of an old interior face not in the plane meets its twin from the element
-    // across (the same corners the other way round); everything else is boundary.
-    let mut faces: Vec<PolyFace> = Vec::new();
-    let mut face_source = Vec::new();
-    // Keyed by the old face and the corner set; the twin must be the same cycle reversed.
-    let mut waiting: HashMap<(u32, Vec<u32>), usize> = HashMap::new();
-    for (element, polygons) in element_faces.into_iter().enumerate() {
-        for (polygon, source) in polygons {
-            let coupled = source.is_some_and(|f| mesh.faces[f as usize].outer.is_some() && !in_plane[f as usize]);
-            if let (true, Some(f)) = (coupled, source) {
-                let mut corners = polygon.clone();
-                corners.sort_unstable();
-                if let Some(index) = waiting.remove(&(f, corners.clone())) {
-                    if !is_reversed_cycle(&faces[index].polygon, &polygon) {
-                        return Err(MeshSplitError::UnmatchedFace { face: f });
+        let position = |v: &SplitVertex| match *v {
+            SplitVertex::Old(i) => mesh.vertices[i as usize],
+            SplitVertex::Crossing(a, b) => split.crossings[&(a, b)],
+        };
+        if let Some(cover) = cover {
+            let mut area = 0.0;
+            for child in split.children.iter().filter(|c| c.side > 0) {
+                for face in child.faces.iter().filter(|f| f.source == FaceSource::Cap) {
+                    let points: Vec<Point3<f64>> = face.polygon.iter().map(position).collect();
+                    let perimeter: f64 =
+                        (0..points.len()).map(|k| (points[(k + 1) % points.len()] - points[k]).norm()).sum();
+                    let covered = cover.covered_area(&points, tolerance)?;
+                    if covered > tolerance * perimeter {
+                        area += covered;
                     }
-                    faces[index].outer = Some(element as u32);
-                    continue;
                 }
-                waiting.insert((f, corners), faces.len());
             }
-            faces.push(PolyFace { polygon, inner: element as u32, outer: None });
-            face_source.push(source);
+            if area == 0.0 {
+                parted.push(whole(&mut next_id, outward));
+                continue;
+            }
+        }
+        split_elements += 1;
+        let first = next_id;
+        let mut children = Vec::with_capacity(split.children.len());
+        // − side caps by corner set: (child, polygon).
+        let mut minus_caps: HashMap<Vec<u32>, u32> = HashMap::new();
+        let mut plus_caps = Vec::new();
+        for (c, child) in split.children.iter().enumerate() {
+            let id = first + c as u32;
+            let mut polygons = Vec::with_capacity(child.faces.len());
+            for face in &child.faces {
+                let polygon: Vec<u32> = face
+                    .polygon
+                    .iter()
+                    .map(|v| match *v {
+                        SplitVertex::Old(i) => i,
+                        SplitVertex::Crossing(a, b) => made.on_segment(a, b, || split.crossings[&(a, b)]),
+                    })
+                    .collect();
+                match face.source {
+                    FaceSource::Face(i) => polygons.push((polygon, Some(faces[i].face as u32))),
+                    FaceSource::Cap if child.side > 0 => plus_caps.push((id, polygon)),
+                    FaceSource::Cap => {
+                        let mut corners = polygon;
+                        corners.sort_unstable();
+                        minus_caps.insert(corners, id);
+                    }
+                }
+            }
+            children.push(polygons);
+        }
+        let mut caps = Vec::with_capacity(plus_caps.len());
+        for (plus, polygon) in plus_caps {
+            let mut corners = polygon.clone();
+            corners.sort_unstable();
+            let minus = minus_caps.remove(&corners).ok_or(MeshSplitError::UnmatchedFace { face: u32::MAX })?;
+            caps.push((plus, minus, polygon));
+        }
+        if !minus_caps.is_empty() {
+            return Err(MeshSplitError::UnmatchedFace { face: u32::MAX });
+        }
+        next_id += children.len() as u32;
+        parted.push(Parted { first, children, caps });
+    }
+
+    let in_plane = |f: &PolyFace| {
+        f.outer.is_some() && f.polygon.iter().all(|&v| side_of_plane(plane, &mesh.vertices[v as usize], tolerance) == 0)
+    };
+    let mut faces: Vec<PolyFace> = Vec::new();
+    let mut face_source: Vec<Option<u32>> = Vec::new();
+    let mut uncoupled_faces = 0;
+    // Pieces of old faces from each element's side: old face ↦ [(new element, outward polygon)].
+    let mut from_inner: HashMap<u32, Vec<(u32, Vec<u32>)>> = HashMap::new();
+    let mut from_outer: HashMap<u32, Vec<(u32, Vec<u32>)>> = HashMap::new();
+    for (e, part) in parted.iter_mut().enumerate() {
+        for (c, child) in part.children.iter_mut().enumerate() {
+            for (polygon, source) in child.drain(..) {
+                let f = source.expect("children's listed faces come from old faces");
+                let side = if mesh.faces[f as usize].inner as usize == e { &mut from_inner } else { &mut from_outer };
+                side.entry(f).or_default().push((part.first + c as u32, polygon));
+            }
         }
     }
-    if let Some(&index) = waiting.values().min() {
-        return Err(MeshSplitError::UnmatchedFace { face: face_source[index].unwrap_or(u32::MAX) });
+    let mut push = |faces: &mut Vec<PolyFace>, polygon: Vec<u32>, inner: u32, outer: Option<u32>, source| {
+        faces.push(PolyFace { polygon, inner, outer });
+        face_source.push(source);
+    };
+    for (f, old) in mesh.faces.iter().enumerate() {
+        let f32 = f as u32;
+        let inner_pieces = from_inner.remove(&f32).unwrap_or_default();
+        if old.outer.is_none() {
+            for (element, polygon) in inner_pieces {
+                push(&mut faces, polygon, element, None, Some(f32));
+            }
+            continue;
+        }
+        let mut outer_pieces = from_outer.remove(&f32).unwrap_or_default();
+        if in_plane(old) {
+            // Whole on each side (a polygon in the plane is not split by it).
+            let (Some((inner_element, polygon)), Some((outer_element, _))) =
+                (inner_pieces.first().cloned(), outer_pieces.first())
+            else {
+                return Err(MeshSplitError::UnmatchedFace { face: f32 });
+            };
+            let outer_element = *outer_element;
+            let pieces = match cover {
+                None => vec![(polygon, true)],
+                Some(cover) => {
+                    let points: Vec<Point3<f64>> = polygon.iter().map(|&v| mesh.vertices[v as usize]).collect();
+                    if cover.covered_area(&points, tolerance)? > 0.0 {
+                        made.split_by_cover(polygon, cover, tolerance)?
+                    } else {
+                        vec![(polygon, false)]
+                    }
+                }
+            };
+            if pieces.iter().any(|(_, covered)| *covered) {
+                uncoupled_faces += 1;
+            }
+            for (polygon, covered) in pieces {
+                if covered {
+                    let reversed = polygon.iter().rev().copied().collect();
+                    push(&mut faces, polygon, inner_element, None, Some(f32));
+                    push(&mut faces, reversed, outer_element, None, Some(f32));
+                } else {
+                    push(&mut faces, polygon, inner_element, Some(outer_element), Some(f32));
+                }
+            }
+            continue;
+        }
+        match (inner_pieces.len(), outer_pieces.len()) {
+            (1, 1)
+                if outer_pieces[0].1.len() == inner_pieces[0].1.len()
+                    && is_reversed_cycle(&inner_pieces[0].1, &outer_pieces[0].1) =>
+            {
+                let (element, polygon) = inner_pieces.into_iter().next().expect("one piece");
+                push(&mut faces, polygon, element, Some(outer_pieces[0].0), Some(f32));
+            }
+            (_, 1) if outer_pieces[0].1.len() == old.polygon.len() => {
+                // The outer element holds the whole face; the inner one's pieces couple to it.
+                for (element, polygon) in inner_pieces {
+                    push(&mut faces, polygon, element, Some(outer_pieces[0].0), Some(f32));
+                }
+            }
+            (1, _) if inner_pieces[0].1.len() == old.polygon.len() => {
+                for (element, polygon) in outer_pieces {
+                    push(&mut faces, polygon, element, Some(inner_pieces[0].0), Some(f32));
+                }
+            }
+            _ => {
+                for (element, polygon) in inner_pieces {
+                    let mut corners = polygon.clone();
+                    corners.sort_unstable();
+                    let twin = outer_pieces.iter().position(|(_, other)| {
+                        let mut theirs = other.clone();
+                        theirs.sort_unstable();
+                        theirs == corners && is_reversed_cycle(&polygon, other)
+                    });
+                    let Some(twin) = twin else {
+                        return Err(MeshSplitError::UnmatchedFace { face: f32 });
+                    };
+                    let (across, _) = outer_pieces.swap_remove(twin);
+                    push(&mut faces, polygon, element, Some(across), Some(f32));
+                }
+                if !outer_pieces.is_empty() {
+                    return Err(MeshSplitError::UnmatchedFace { face: f32 });
+                }
+            }
+        }
     }
-    let uncoupled_faces = in_plane.iter().filter(|&&p| p).count();
-    let num_elements = parent.len();
+    for part in &parted {
+        for (plus, minus, polygon) in &part.caps {
+            let pieces = match cover {
+                None => vec![(polygon.clone(), true)],
+                Some(cover) => made.split_by_cover(polygon.clone(), cover, tolerance)?,
+            };
+            for (polygon, covered) in pieces {
+                if covered {
+                    let reversed = polygon.iter().rev().copied().collect();
+                    push(&mut faces, polygon, *plus, None, None);
+                    push(&mut faces, reversed, *minus, None, None);
+                } else {
+                    push(&mut faces, polygon, *plus, Some(*minus), None);
+                }
+            }
+        }
+    }
+    for face in &mut faces {
+        face.polygon = made.refine(&face.polygon);
+    }
+    let parent = parted
+        .iter()
+        .enumerate()
+        .flat_map(|(e, part)| std::iter::repeat_n(e as u32, part.children.len().max(1)))
+        .collect::<Vec<u32>>();
+    debug_assert_eq!(parent.len(), next_id as usize);
     Ok(MeshSplit {
-        mesh: PolyhedralMesh { vertices, faces, num_elements },
+        mesh: PolyhedralMesh { vertices: made.vertices, faces, num_elements: next_id as usize },
         parent,
         face_source,
         split_elements,

@@ -7,7 +7,7 @@ mod common;
 
 use common::plane;
 
-use cleave_geometry::{PolyhedralMesh, UnionFind, hex_slice, split_mesh_by_plane};
+use cleave_geometry::{PolyhedralMesh, UnionFind, cut_mesh_by_polygon, hex_slice, split_mesh_by_plane};
 use nalgebra::{Point3, Rotation3, Unit, Vector3};
 
 /// Elements joined through coupled faces: the number of pieces.
@@ -106,4 +106,94 @@ fn the_sliced_bunny_cut_three_times_stays_valid() {
         last = found;
         mesh = split_mesh_by_plane(&mesh, &cut, 1e-12 * size).unwrap().mesh;
     }
+}
+
+/// The area of the faces a cut opened (a piece of the section left uncoupled, or a piece of an
+/// interior face in the plane), over both sides.
+fn opened_area(before: &PolyhedralMesh, split: &cleave_geometry::MeshSplit) -> f64 {
+    split
+        .mesh
+        .faces
+        .iter()
+        .zip(&split.face_source)
+        .filter(|(face, source)| {
+            face.outer.is_none() && source.is_none_or(|f| before.faces[f as usize].outer.is_some())
+        })
+        .map(|(face, _)| split.mesh.polygon_area(&face.polygon))
+        .sum()
+}
+
+/// Cuts by a polygon and checks it like `check`; returns the split.
+fn check_polygon(before: &PolyhedralMesh, polygon: &[Point3<f64>], tolerance: f64) -> cleave_geometry::MeshSplit {
+    let split = cut_mesh_by_polygon(before, polygon, tolerance).unwrap();
+    let stats = split.mesh.validate(1e-8).unwrap_or_else(|e| panic!("{e}"));
+    let old = volumes(before);
+    let total: f64 = old.iter().sum();
+    assert!((stats.volume - total).abs() < 1e-12 * total, "{} vs {total}", stats.volume);
+    let mut filled = vec![0.0; old.len()];
+    for (v, &p) in volumes(&split.mesh).iter().zip(&split.parent) {
+        filled[p as usize] += v;
+    }
+    for (e, (f, o)) in filled.iter().zip(&old).enumerate() {
+        assert!((f - o).abs() < 1e-12 * o.abs().max(1e-300) + 1e-15, "element {e}: {f} vs {o}");
+    }
+    split
+}
+
+/// A triangle covering part of a grid's section, through the middle of its cells: the covered
+/// part (by hand, 2.25) is opened on both sides, the body stays one piece (the cut ends inside
+/// it); the same on the grid turned and moved; a second, coplanar triangle sharing the first's
+/// long side (as a blade's swept quads do) covers the rest of the section and separates the body.
+#[test]
+fn a_triangle_opens_what_it_covers_and_a_second_one_completes_the_cut() {
+    let grid = PolyhedralMesh::grid(Point3::origin(), 1.0, [3, 3, 3]);
+    let turn = Rotation3::from_axis_angle(&Unit::new_normalize(Vector3::new(0.2, -0.7, 0.6)), 2.1);
+    let shift = Vector3::new(-3.0, 1.5, 0.25);
+    let moved = PolyhedralMesh { vertices: grid.vertices.iter().map(|p| turn * p + shift).collect(), ..grid.clone() };
+    let place = |p: Point3<f64>, turned: bool| if turned { turn * p + shift } else { p };
+    for (mesh, turned) in [(&grid, false), (&moved, true)] {
+        // In x = 1.5, (y, z) ∈ {(−1, −1), (5, −1), (−1, 2)}: covers z ≤ 1.5 − y/2 of [0, 3]².
+        let first = [(-1.0, -1.0), (5.0, -1.0), (-1.0, 2.0)].map(|(y, z)| place(Point3::new(1.5, y, z), turned));
+        let split = check_polygon(mesh, &first, 1e-12);
+        assert!((opened_area(mesh, &split) - 2.0 * 2.25).abs() < 1e-12, "{}", opened_area(mesh, &split));
+        assert_eq!(pieces(&split.mesh), 1, "a cut ending inside leaves one piece");
+        // Beyond the first triangle's long side, sharing it: the rest of the section.
+        let second = [(5.0, -1.0), (-1.0, 20.0), (-1.0, 2.0)].map(|(y, z)| place(Point3::new(1.5, y, z), turned));
+        let again = check_polygon(&split.mesh, &second, 1e-12);
+        assert_eq!(pieces(&again.mesh), 2);
+        let split_area = opened_area(mesh, &split) + opened_area(&split.mesh, &again);
+        assert!((split_area - 2.0 * 9.0).abs() < 1e-11, "{split_area}");
+    }
+}
+
+/// A triangle lying in grid faces (x = 1) opens only what it covers of them: z ≤ 2 − y of the
+/// 3 × 3 square, area 2 (by hand), on both sides, and the body stays one piece.
+#[test]
+fn a_triangle_in_the_grid_faces_uncouples_what_it_covers() {
+    let grid = PolyhedralMesh::grid(Point3::origin(), 1.0, [3, 3, 3]);
+    let triangle = [Point3::new(1.0, -1.0, -1.0), Point3::new(1.0, 3.0, -1.0), Point3::new(1.0, -1.0, 3.0)];
+    let split = check_polygon(&grid, &triangle, 1e-12);
+    assert_eq!(split.split_elements, 0);
+    assert!((opened_area(&grid, &split) - 2.0 * 2.0).abs() < 1e-12, "{}", opened_area(&grid, &split));
+    assert_eq!(pieces(&split.mesh), 1);
+}
+
+/// Random triangles on the sliced bunny, each cutting the last cut's mesh: every cut validates,
+/// keeps the volume and fills its parents, whatever the triangle meets.
+#[test]
+fn random_triangles_cut_the_sliced_bunny_validly() {
+    let bunny = common::bunny();
+    let (lo, hi) = bunny.aabb();
+    let size = (hi - lo).norm();
+    let mut mesh = hex_slice(&bunny, size / 10.0).unwrap().mesh;
+    let mut random = common::Rng(17);
+    let mut opened = 0;
+    for _ in 0..12 {
+        let a = random.point(&lo, &hi);
+        let triangle = [a, a + (random.point(&lo, &hi) - a) * 0.8, a + (random.point(&lo, &hi) - a) * 0.8];
+        let split = check_polygon(&mesh, &triangle, 1e-12 * size);
+        opened += split.split_elements + split.uncoupled_faces;
+        mesh = split.mesh;
+    }
+    assert!(opened > 12, "the triangles met the bunny: {opened} elements split or faces opened");
 }
