@@ -103,7 +103,7 @@ impl Cover {
         }
         let normal = newell_normal(polygon);
         let length = normal.norm();
-        if !(length > 0.0) {
+        if length.is_nan() || length <= 0.0 {
             return None;
         }
         let n = normal / length;
