@@ -178,9 +178,12 @@ struct FaceTerms {
     anchored: Option<(DMatrix<Real>, u32)>,
     /// Penalty matrix for η = 1 (unwarped).
     unit_penalty: DMatrix<Real>,
+    /// The weight `η_f` it was built with.
+    weight: Real,
 }
 
 /// The DG discretization of one elastic body.
+#[derive(Clone)]
 pub struct DgMesh {
     name: String,
     material: Material,
@@ -205,6 +208,9 @@ pub struct DgMesh {
     epoch: u64,
     /// Per face of `mesh`: whether it lies on a cut (rendered as a cut face).
     cut_faces: Vec<bool>,
+    /// Per face: its penalty weight `η_f` per unit η (docs/math/dg.md §4), kept by the pieces
+    /// of a face a cut splits (§13) so that a cut leaves every jump's energy as it was.
+    face_weights: Vec<Real>,
 }
 
 impl std::fmt::Debug for DgMesh {
@@ -240,6 +246,18 @@ impl DgMesh {
         material: Material,
         options: DgOptions,
         dirichlet: Option<&WeakDirichlet<'_>>,
+    ) -> Result<Self, DgError> {
+        Self::with_face_weights(mesh, material, options, dirichlet, None)
+    }
+
+    /// [`DgMesh::new`] with some faces' penalty weights given (`inherited[f]`; the others are
+    /// computed from the geometry): a cut's pieces of an old face keep the old face's weight.
+    pub(crate) fn with_face_weights(
+        mesh: PolyhedralMesh,
+        material: Material,
+        options: DgOptions,
+        dirichlet: Option<&WeakDirichlet<'_>>,
+        inherited: Option<&[Option<Real>]>,
     ) -> Result<Self, DgError> {
         if !(1..=2).contains(&options.degree) {
             return Err(DgError::Degree(options.degree));
@@ -322,8 +340,12 @@ impl DgMesh {
 
         let face_terms: Vec<Option<FaceTerms>> = (0..mesh.faces.len())
             .into_par_iter()
-            .map(|f| face_terms(&mesh, f, &bases, &exps, &material, options.flux, dirichlet))
+            .map(|f| {
+                let weight = inherited.and_then(|w| w.get(f).copied().flatten());
+                face_terms(&mesh, f, &bases, &exps, &material, options.flux, dirichlet, weight)
+            })
             .collect();
+        let face_weights = face_terms.iter().map(|t| t.as_ref().map_or(0.0, |t| t.weight)).collect();
 
         let has_dirichlet = face_terms.iter().flatten().any(|t| t.nodes.len() == nb);
 
@@ -354,6 +376,7 @@ impl DgMesh {
             penalty_search_seconds: 0.0,
             epoch: 0,
             cut_faces: Vec::new(),
+            face_weights,
         };
         this.cut_faces = vec![false; this.mesh.faces.len()];
         let search = std::time::Instant::now();
@@ -638,7 +661,9 @@ fn face_integrals(mesh: &PolyhedralMesh, f: usize, sides: &[&ElementBasis], exps
 
 /// The terms of face `f`, `None` for free boundary faces. An interior face has the sides
 /// `(K⁻, K⁺)` with `sgn = (1, −1)` and the average's weight ½; a Dirichlet face has the one side
-/// `K` with `sgn = 1` and weight 1 (`σ⁻ := σ⁺`, docs/math/dg.md §4).
+/// `K` with `sgn = 1` and weight 1 (`σ⁻ := σ⁺`, docs/math/dg.md §4). An interior face's penalty
+/// weight is `weight` when given (a piece of a face a cut split keeps the face's, §13).
+#[allow(clippy::too_many_arguments)]
 fn face_terms(
     mesh: &PolyhedralMesh,
     f: usize,
@@ -647,6 +672,7 @@ fn face_terms(
     material: &Material,
     flux: Flux,
     dirichlet: Option<&WeakDirichlet<'_>>,
+    weight: Option<Real>,
 ) -> Option<FaceTerms> {
     let nb = exps.len() as u32;
     let face = &mesh.faces[f];
@@ -654,7 +680,15 @@ fn face_terms(
     let (elements, signs, average, eta_f): (Vec<usize>, &[Real], Real, Real) = match face.outer {
         Some(outer) => {
             let (em, ep) = (face.inner as usize, outer as usize);
-            let eta_f = material.youngs_modulus * area * (1.0 / bases[em].volume + 1.0 / bases[ep].volume);
+            let geometric = material.youngs_modulus * area * (1.0 / bases[em].volume + 1.0 / bases[ep].volume);
+            // BZ is stable for any weight: a piece keeps its face's, and a cut keeps every jump's
+            // energy. IP's consistency terms grow on a small child: its weight may not fall
+            // below the geometric one (docs/math/dg.md §13).
+            let eta_f = match (weight, flux) {
+                (Some(w), Flux::BabuskaZlamal) => w,
+                (Some(w), Flux::InteriorPenalty) => w.max(geometric),
+                (None, _) => geometric,
+            };
             (vec![em, ep], &[1.0, -1.0], 0.5, eta_f)
         }
         None => {
@@ -686,7 +720,7 @@ fn face_terms(
         }
     }
     let nodes = elements.iter().flat_map(|&e| (0..nb).map(move |i| e as u32 * nb + i)).collect();
-    Some(FaceTerms { nodes, warped, anchored, unit_penalty })
+    Some(FaceTerms { nodes, warped, anchored, unit_penalty, weight: eta_f })
 }
 
 /// `η_f ∫ ⟦u⟧ : ⟦v⟧`: `[(s,i,a),(t,j,a)] = η_f sgn_s sgn_t P^{st}_{ij}`.
@@ -820,6 +854,14 @@ fn add_dirichlet_load(
 impl Discretization for DgMesh {
     fn name(&self) -> &str {
         &self.name
+    }
+
+    fn as_cuttable(&mut self) -> Option<&mut dyn cleave_core::Cuttable> {
+        Some(self)
+    }
+
+    fn copy_for_cutting(&self) -> Option<Box<dyn Discretization>> {
+        Some(Box::new(self.clone()))
     }
 
     fn num_nodes(&self) -> usize {

@@ -37,6 +37,7 @@
 pub mod arrangement;
 mod blade;
 mod closest;
+mod ear_clip;
 mod element_split;
 mod error;
 mod hex_slice;
@@ -58,6 +59,7 @@ mod voxelize;
 
 pub use blade::{Blade, BladeError, Keyframe};
 pub use closest::{closest_parameters_of_lines, closest_point_on_triangle};
+pub use ear_clip::triangulate_planar_polygon;
 pub use element_split::{
     ChildFace, ElementChild, ElementSplit, ElementSplitError, FaceSource, SplitVertex, split_element,
 };

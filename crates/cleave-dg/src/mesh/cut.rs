@@ -1,8 +1,9 @@
-//! Cutting a DG body by a plane (kaufmann2008 §8; docs/math/dg.md §13): the polyhedral mesh
-//! split by `cleave_geometry::split_mesh_by_plane`, the discretization rebuilt on it with the
-//! penalty kept, each child's coefficients its parent's polynomial restricted exactly
-//! (`basis::restriction`), the pieces the components joined through coupled faces, and a render
-//! surface made of the boundary faces, welded per piece.
+//! Cutting a DG body by a plane or a triangle soup (kaufmann2008 §8; docs/math/dg.md §13): the
+//! polyhedral mesh split by `cleave_geometry::split_mesh_by_plane` or, triangle by triangle,
+//! `cut_mesh_by_polygon`, the discretization rebuilt on it with the penalty kept, each child's
+//! coefficients its first parent's polynomial restricted exactly (`basis::restriction`), the
+//! pieces the components joined through coupled faces, and a render surface made of the
+//! boundary faces, welded per group of elements joined around each vertex.
 
 use super::DgMesh;
 use crate::basis::restriction;
@@ -11,8 +12,11 @@ use cleave_core::{
     CutSurface, Cuttable, DofRemap, EmbeddedSurface, Embedding, FrameRemap, Piece, Point3, Real, TopologyChange,
     TopologyError, Vector3,
 };
-use cleave_geometry::{UnionFind, split_mesh_by_plane};
-use std::collections::BTreeMap;
+use cleave_geometry::{
+    MeshSplit, MeshSplitError, PolyhedralMesh, UnionFind, cut_mesh_by_polygon, split_mesh_by_plane,
+    triangulate_planar_polygon,
+};
+use std::collections::{BTreeMap, HashMap};
 
 /// Distance under which a vertex counts as on a cutting plane, relative to the mesh's size: far
 /// below any element, far above the rounding that moves a vertex exactly on the plane off it
@@ -41,18 +45,24 @@ impl DgMesh {
 }
 
 impl Cuttable for DgMesh {
-    /// Cuts along a plane; triangle soups (and so blades) are refused for now (issue 38's next
-    /// step), as is a body with weak Dirichlet data, which the rebuild would need again.
+    /// Cuts along a plane or a triangle soup (each triangle in turn, `cut_mesh_by_polygon`: the
+    /// section uncoupled where the triangle covers it, so a cut may end inside the material);
+    /// a body with weak Dirichlet data is refused (the rebuild would need the data again).
     fn cut(&mut self, surface: &CutSurface) -> Result<TopologyChange, TopologyError> {
-        let CutSurface::Plane { point, normal } = surface else {
-            return Err(TopologyError::Invalid(
-                "the DG backend cuts planes only so far; triangle soups and blades are not built yet".into(),
-            ));
-        };
-        let length = normal.norm();
-        if !(length.is_finite() && length > 0.0 && point.coords.iter().all(|c| c.is_finite())) {
+        if let CutSurface::Plane { point, normal } = surface {
+            let length = normal.norm();
+            if !(length.is_finite() && length > 0.0 && point.coords.iter().all(|c| c.is_finite())) {
+                return Err(TopologyError::Invalid(format!(
+                    "a cutting plane needs a finite point and a non-zero normal, got {point} and {normal}"
+                )));
+            }
+        }
+        if let CutSurface::Triangles(triangles) = surface
+            && let Some(bad) = triangles.iter().position(|t| t.iter().any(|p| p.coords.iter().any(|c| !c.is_finite())))
+        {
             return Err(TopologyError::Invalid(format!(
-                "a cutting plane needs a finite point and a non-zero normal, got {point} and {normal}"
+                "cut triangle {bad} has a non-finite corner: {:?}",
+                triangles[bad]
             )));
         }
         if self.has_dirichlet {
@@ -61,20 +71,59 @@ impl Cuttable for DgMesh {
                     .into(),
             ));
         }
-        let n = normal / length;
-        let helper = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
-        let u = n.cross(&helper).normalize();
-        // (u) × (n × u) = n: the plane's right-hand normal is n.
-        let plane = [*point, point + u, point + n.cross(&u)];
         let (mut lo, mut hi) = (Point3::from([Real::MAX; 3]), Point3::from([Real::MIN; 3]));
         for p in &self.mesh.vertices {
             lo = lo.inf(p);
             hi = hi.sup(p);
         }
         let tolerance = ON_PLANE * (hi - lo).norm();
-        let split = split_mesh_by_plane(&self.mesh, &plane, tolerance)
-            .map_err(|e| TopologyError::Invalid(format!("cutting the DG mesh: {e}")))?;
-        if split.split_elements == 0 && split.uncoupled_faces == 0 {
+        let fail = |e: MeshSplitError| TopologyError::Invalid(format!("cutting the DG mesh: {e}"));
+        // The mesh after each triangle, with each element's first parent and each face's cut mark.
+        let mut mesh = self.mesh.clone();
+        let mut parent: Vec<u32> = (0..mesh.num_elements as u32).collect();
+        let mut cut_faces = self.cut_faces.clone();
+        // Per face, the face before the cut it is a piece of (`None`: a piece of a section).
+        let mut first_face: Vec<Option<u32>> = (0..mesh.faces.len() as u32).map(Some).collect();
+        let mut changed = false;
+        let mut apply = |split: MeshSplit, mesh: &mut PolyhedralMesh, parent: &mut Vec<u32>, cut: &mut Vec<bool>| {
+            changed |= split.split_elements > 0 || split.uncoupled_faces > 0;
+            first_face = split.face_source.iter().map(|s| s.and_then(|f| first_face[f as usize])).collect();
+            // On a cut: a boundary piece of the section, a piece of a face already cut, or an
+            // interior face the cut ran along (coupled before, boundary now).
+            *cut = split
+                .face_source
+                .iter()
+                .zip(&split.mesh.faces)
+                .map(|(source, face)| match source {
+                    None => face.outer.is_none(),
+                    Some(f) => cut[*f as usize] || (mesh.faces[*f as usize].outer.is_some() && face.outer.is_none()),
+                })
+                .collect();
+            *parent = split.parent.iter().map(|&p| parent[p as usize]).collect();
+            *mesh = split.mesh;
+        };
+        match surface {
+            CutSurface::Plane { point, normal } => {
+                let n = normal / normal.norm();
+                let helper = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+                let u = n.cross(&helper).normalize();
+                // (u) × (n × u) = n: the plane's right-hand normal is n.
+                let plane = [*point, point + u, point + n.cross(&u)];
+                let split = split_mesh_by_plane(&mesh, &plane, tolerance).map_err(fail)?;
+                apply(split, &mut mesh, &mut parent, &mut cut_faces);
+            }
+            CutSurface::Triangles(triangles) => {
+                for triangle in triangles {
+                    match cut_mesh_by_polygon(&mesh, triangle, tolerance) {
+                        Ok(split) => apply(split, &mut mesh, &mut parent, &mut cut_faces),
+                        // A triangle without area covers nothing.
+                        Err(MeshSplitError::BadPolygon) => {}
+                        Err(e) => return Err(fail(e)),
+                    }
+                }
+            }
+        }
+        if !changed {
             return Ok(TopologyChange {
                 epoch: self.epoch,
                 remap: DofRemap::Identity,
@@ -82,28 +131,19 @@ impl Cuttable for DgMesh {
                 pattern_changed: false,
             });
         }
-        // On a cut: a piece of the section, a piece of a face already cut, or an interior face
-        // the plane ran along (coupled before, boundary now).
-        let cut_faces: Vec<bool> = split
-            .face_source
-            .iter()
-            .zip(&split.mesh.faces)
-            .map(|(source, face)| {
-                source.is_none_or(|f| {
-                    self.cut_faces[f as usize] || (self.mesh.faces[f as usize].outer.is_some() && face.outer.is_none())
-                })
-            })
-            .collect();
         // The penalty reached before (with its margin) is kept: the jumps already there keep
         // their energy. IP may still double it if a child makes the stiffness indefinite.
         let options = DgOptions { penalty: self.penalty, penalty_margin: 1.0, ..self.options };
-        let mut rebuilt = DgMesh::new(split.mesh, self.material, options, None)
+        // A piece of a coupled face keeps the face's penalty weight, so its jump keeps its energy.
+        let inherited: Vec<Option<Real>> =
+            first_face.iter().map(|f| f.map(|f| self.face_weights[f as usize])).collect();
+        let mut rebuilt = DgMesh::with_face_weights(mesh, self.material, options, None, Some(&inherited))
             .map_err(|e| TopologyError::Invalid(format!("rebuilding the DG discretization after a cut: {e}")))?;
         let nb = self.exps.len();
         let mut rows = Embedding::new();
         let mut nodes = vec![0u32; nb];
-        for (child, &parent) in split.parent.iter().enumerate() {
-            let (p, c) = (parent as usize, child);
+        for (child, &first) in parent.iter().enumerate() {
+            let (p, c) = (first as usize, child);
             let r = restriction(&self.bases[p], &rebuilt.bases[c], self.options.degree).ok_or_else(|| {
                 TopologyError::Invalid(format!("element {c} (of {p}): its basis cannot take its parent's polynomial"))
             })?;
@@ -121,21 +161,40 @@ impl Cuttable for DgMesh {
         Ok(TopologyChange {
             epoch: self.epoch,
             remap: DofRemap::Linear(rows),
-            frames: FrameRemap::Gather(split.parent),
+            frames: FrameRemap::Gather(parent),
             pattern_changed: true,
         })
     }
 
     /// The boundary faces (the original surface's pieces and the cuts'), fanned into triangles;
-    /// a vertex is one per mesh vertex and piece, evaluated as the mean of the piece's elements
-    /// that hold it on their boundary (each element's polynomial at the point), so every piece's
-    /// surface is closed. Fans are exact for convex faces; a cut's face through a non-convex
-    /// element may be non-convex, and its fan then overlaps itself (the signed area and the
-    /// enclosed volume stay right).
+    /// a vertex is one per mesh vertex and group of elements joined around it through coupled
+    /// faces holding it (so the two sheets of a cut that ends inside the body share only the
+    /// vertices along its end), evaluated as the mean of the group's elements that hold it on
+    /// their boundary (each element's polynomial at the point), so every piece's surface is
+    /// closed. Fans are exact for convex faces; a cut's face through a non-convex element may be
+    /// non-convex, and its fan then overlaps itself (the signed area and the enclosed volume stay
+    /// right).
     fn surface(&self) -> Option<EmbeddedSurface> {
         let (piece_of, _) = self.piece_of_elements();
         let nb = self.exps.len();
-        // (mesh vertex, piece) ↦ (surface vertex, elements holding it).
+        // (vertex, element) incidences, joined through the coupled faces holding the vertex.
+        let mut incidence: HashMap<(u32, u32), usize> = HashMap::new();
+        let mut joins = Vec::new();
+        for face in &self.mesh.faces {
+            for &v in &face.polygon {
+                let next = incidence.len();
+                let a = *incidence.entry((v, face.inner)).or_insert(next);
+                if let Some(outer) = face.outer {
+                    let next = incidence.len();
+                    joins.push((a, *incidence.entry((v, outer)).or_insert(next)));
+                }
+            }
+        }
+        let mut group = UnionFind::new(incidence.len());
+        for (a, b) in joins {
+            group.union(a, b);
+        }
+        // (mesh vertex, group) ↦ (surface vertex, elements holding it).
         let mut welded: BTreeMap<(u32, usize), (u32, Vec<u32>)> = BTreeMap::new();
         let mut surface = EmbeddedSurface::default();
         for (f, face) in self.mesh.faces.iter().enumerate().filter(|(_, face)| face.outer.is_none()) {
@@ -145,16 +204,22 @@ impl Cuttable for DgMesh {
                 .polygon
                 .iter()
                 .map(|&v| {
+                    let root = group.find(incidence[&(v, element)]);
                     let next = welded.len() as u32;
-                    let entry = welded.entry((v, piece)).or_insert_with(|| (next, Vec::new()));
+                    let entry = welded.entry((v, root)).or_insert_with(|| (next, Vec::new()));
                     if !entry.1.contains(&element) {
                         entry.1.push(element);
                     }
                     entry.0
                 })
                 .collect();
-            for k in 1..corners.len().saturating_sub(1) {
-                surface.triangles.push([corners[0], corners[k], corners[k + 1]]);
+            // Ear clipping: cut faces carry collinear corners (vertices inserted on their edges)
+            // and may be non-convex; a fan would make zero-area or overlapping triangles.
+            let points: Vec<Point3<Real>> = face.polygon.iter().map(|&v| self.mesh.vertices[v as usize]).collect();
+            let triangles = triangulate_planar_polygon(&points)
+                .unwrap_or_else(|| (1..points.len() - 1).map(|k| [0, k, k + 1]).collect());
+            for [a, b, c] in triangles {
+                surface.triangles.push([corners[a], corners[b], corners[c]]);
                 surface.on_cut.push(self.cut_faces[f]);
                 surface.piece.push(piece as u32);
             }
