@@ -10,7 +10,7 @@
 use cleave_core::{CutSurface, Cuttable, Discretization, DofRemap, FrameRemap, Material, Point3, Real, Vector3};
 use cleave_dg::{DgMesh, DgOptions, Flux};
 use cleave_geometry::PolyhedralMesh;
-use cleave_testkit::cut_conformance::{CutBody, CutSubject, Transfer, curved_strip, cut_conformance};
+use cleave_testkit::cut_conformance::{CutBody, CutSubject, Transfer, contract_cuts, cut_conformance};
 use nalgebra::{Isometry3, Rotation3, Unit};
 use std::collections::HashMap;
 
@@ -239,16 +239,7 @@ fn make_box(degree: usize, flux: Flux) -> MakeBody {
 fn contract_subject(make: &MakeBody, transfer: Transfer) -> CutSubject<'_> {
     CutSubject {
         make,
-        cuts: vec![
-            CutSurface::Plane { point: Point3::new(0.3, 0.0, 0.0), normal: Vector3::new(1.0, 0.3, 0.1) },
-            CutSurface::Triangles(vec![[
-                Point3::new(0.42, -0.3, 0.2),
-                Point3::new(0.5, 0.3, 0.35),
-                Point3::new(0.46, -0.3, 0.6),
-            ]]),
-            CutSurface::Triangles(curved_strip()),
-            CutSurface::Plane { point: Point3::new(0.0, 0.0, 0.31), normal: Vector3::z() },
-        ],
+        cuts: contract_cuts(0.31),
         placement: Isometry3::new(Vector3::new(0.37, -1.21, 2.53), Vector3::new(0.3, -0.5, 0.8)),
         transfer,
     }

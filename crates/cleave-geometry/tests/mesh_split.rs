@@ -43,6 +43,13 @@ fn volumes(mesh: &PolyhedralMesh) -> Vec<f64> {
 /// Checks a cut: validation, volume kept, each parent's children filling it; returns the pieces.
 fn check(before: &PolyhedralMesh, cut: &[Point3<f64>; 3], tolerance: f64) -> usize {
     let split = split_mesh_by_plane(before, cut, tolerance).unwrap();
+    check_split(before, &split);
+    pieces(&split.mesh)
+}
+
+/// The split mesh validates (closed, outward, planar), keeps the volume to 1e-12, and each old
+/// element's children fill it to 1e-12.
+fn check_split(before: &PolyhedralMesh, split: &cleave_geometry::MeshSplit) {
     let stats = split.mesh.validate(1e-8).unwrap_or_else(|e| panic!("{e}"));
     let old = volumes(before);
     let total: f64 = old.iter().sum();
@@ -54,7 +61,6 @@ fn check(before: &PolyhedralMesh, cut: &[Point3<f64>; 3], tolerance: f64) -> usi
     for (e, (f, o)) in filled.iter().zip(&old).enumerate() {
         assert!((f - o).abs() < 1e-12 * o.abs().max(1e-300) + 1e-15, "element {e}: {f} vs {o}");
     }
-    pieces(&split.mesh)
 }
 
 #[test]
@@ -126,17 +132,7 @@ fn opened_area(before: &PolyhedralMesh, split: &cleave_geometry::MeshSplit) -> f
 /// Cuts by a polygon and checks it like `check`; returns the split.
 fn check_polygon(before: &PolyhedralMesh, polygon: &[Point3<f64>], tolerance: f64) -> cleave_geometry::MeshSplit {
     let split = cut_mesh_by_polygon(before, polygon, tolerance).unwrap();
-    let stats = split.mesh.validate(1e-8).unwrap_or_else(|e| panic!("{e}"));
-    let old = volumes(before);
-    let total: f64 = old.iter().sum();
-    assert!((stats.volume - total).abs() < 1e-12 * total, "{} vs {total}", stats.volume);
-    let mut filled = vec![0.0; old.len()];
-    for (v, &p) in volumes(&split.mesh).iter().zip(&split.parent) {
-        filled[p as usize] += v;
-    }
-    for (e, (f, o)) in filled.iter().zip(&old).enumerate() {
-        assert!((f - o).abs() < 1e-12 * o.abs().max(1e-300) + 1e-15, "element {e}: {f} vs {o}");
-    }
+    check_split(before, &split);
     split
 }
 

@@ -3,7 +3,7 @@
 
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real, Vector3};
 use cleave_meanvalue::{ConvexPolyhedron, MeanValueMesh, QUALITY_FLOOR, quality};
-use cleave_testkit::cut_conformance::{CutBody, CutSubject, Transfer, curved_strip, cut_conformance};
+use cleave_testkit::cut_conformance::{CutBody, CutSubject, Transfer, contract_cuts, cut_conformance};
 use cleave_testkit::{assert_all_pass, conformance_suite};
 use nalgebra::Isometry3;
 
@@ -89,16 +89,7 @@ fn cuts_keep_the_cut_contract() {
     };
     let subject = CutSubject {
         make: &make,
-        cuts: vec![
-            CutSurface::Plane { point: Point3::new(0.3, 0.0, 0.0), normal: Vector3::new(1.0, 0.3, 0.1) },
-            CutSurface::Triangles(vec![[
-                Point3::new(0.42, -0.3, 0.2),
-                Point3::new(0.5, 0.3, 0.35),
-                Point3::new(0.46, -0.3, 0.6),
-            ]]),
-            CutSurface::Triangles(curved_strip()),
-            CutSurface::Plane { point: Point3::new(0.0, 0.0, 0.31), normal: Vector3::z() },
-        ],
+        cuts: contract_cuts(0.31),
         placement: Isometry3::new(Vector3::new(0.37, -1.21, 2.53), Vector3::new(0.3, -0.5, 0.8)),
         // Measured: 1.3e-3 and 1.3e-4 (the interpolation error of the bent field, O(κh²)).
         transfer: Transfer::Interpolated { bent_motion: 5e-3, bent_energy: 1e-3 },

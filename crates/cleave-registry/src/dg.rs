@@ -6,11 +6,13 @@ use crate::backend::{
     Backend, BackendError, BuiltSolid, Region, ResolvedPins, Shape, SolidRequest, box_dims, cell_size_for, one_size,
     parse_settings,
 };
+use cleave_core::{CutSurface, Cuttable};
 use cleave_core::{Discretization, Material, Matrix3, Point3, Real, Vector3};
 use cleave_dg::{DgMesh, DgOptions, Flux, WeakDirichlet};
 use cleave_geometry::PolyhedralMesh;
 use cleave_testkit::compare::{
-    BoxGrid, BuildError, BuiltProblem, CompareBackend, DirichletSpec, ExtremeCase, NotApplicable, stretch_start,
+    BoxGrid, BuildError, BuiltProblem, CompareBackend, CutError, CutProblem, DirichletSpec, ExtremeCase, NotApplicable,
+    stretch_start,
 };
 
 /// Registration of `cleave-dg`: variants `bz-1`, `ip-1`, `bz-2`, `ip-2` (flux, degree).
@@ -63,6 +65,46 @@ impl CompareBackend for DgBackend {
             elements,
             search_seconds,
         })
+    }
+
+    fn cuts(&self, _variant: &str) -> bool {
+        true
+    }
+
+    /// The box cut by `surface` with `Cuttable::cut` (what scenes call) while free, then the
+    /// discretization rebuilt on the cut mesh with the weak Dirichlet data (a DG body with weak
+    /// Dirichlet data is not cut itself: the data is not kept for a rebuild, docs/math/dg.md
+    /// §13). The rebuild has the same elements and DOFs as the cut body, so `change` maps onto
+    /// it; its face weights are the geometric ones.
+    fn build_cut_box(
+        &self,
+        variant: &str,
+        material: &Material,
+        grid: &BoxGrid,
+        dirichlet: &DirichletSpec,
+        surface: &CutSurface,
+    ) -> Result<CutProblem, CutError> {
+        let options = parse_variant(variant).map_err(|e| CutError::Build(e.0))?;
+        let mesh = PolyhedralMesh::grid(grid.origin, grid.h, grid.dims);
+        let mut free = DgMesh::new(mesh, *material, options, None).map_err(|e| CutError::Build(e.to_string()))?;
+        let change = free.cut(surface).map_err(|e| CutError::CannotCut(e.to_string()))?;
+        if change.remap == cleave_core::DofRemap::Identity {
+            return Err(CutError::CannotCut("the cut separates nothing".into()));
+        }
+        let weak = WeakDirichlet { on_boundary: dirichlet.region, data: dirichlet.value };
+        let dg = DgMesh::new(free.polyhedral_mesh().clone(), *material, options, Some(&weak))
+            .map_err(|e| CutError::Build(e.to_string()))?;
+        let elements = dg.num_elements();
+        let search_seconds = dg.penalty_search_seconds();
+        let dirichlet_load = dg.dirichlet_load().to_vec();
+        let built = BuiltProblem {
+            discretization: Box::new(dg),
+            prescribed: Vec::new(),
+            dirichlet_load,
+            elements,
+            search_seconds,
+        };
+        Ok(CutProblem { built, change })
     }
 
     fn extreme_start(

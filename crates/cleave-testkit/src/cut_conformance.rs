@@ -55,6 +55,22 @@ pub fn curved_strip() -> Vec<[Point3<Real>; 3]> {
         .collect()
 }
 
+/// The contract's cut sequence for bodies around [0, 0.8] × [−0.2, 0.2] × [0.1, 0.5]: an
+/// oblique plane, a triangle ending inside the body, the curved strip, and the horizontal plane
+/// at height `z` (chosen per backend off its lattice's node planes, or on them on purpose).
+pub fn contract_cuts(z: Real) -> Vec<CutSurface> {
+    vec![
+        CutSurface::Plane { point: Point3::new(0.3, 0.0, 0.0), normal: Vector3::new(1.0, 0.3, 0.1) },
+        CutSurface::Triangles(vec![[
+            Point3::new(0.42, -0.3, 0.2),
+            Point3::new(0.5, 0.3, 0.35),
+            Point3::new(0.46, -0.3, 0.6),
+        ]]),
+        CutSurface::Triangles(curved_strip()),
+        CutSurface::Plane { point: Point3::new(0.0, 0.0, z), normal: Vector3::z() },
+    ]
+}
+
 /// How a backend carries the displacement field across a cut.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Transfer {

@@ -5,7 +5,7 @@
 
 use cleave_core::{CutSurface, Cuttable, Discretization, Material, Point3, Real, Vector3};
 use cleave_testkit::compare::Problem;
-use cleave_testkit::cut_conformance::{CutBody, CutSubject, Transfer, curved_strip, cut_conformance};
+use cleave_testkit::cut_conformance::{CutBody, CutSubject, Transfer, contract_cuts, cut_conformance};
 use cleave_testkit::problems::{cantilever, crack};
 use cleave_testkit::{assert_all_pass, conformance_suite};
 use cleave_voxel::VoxelMesh;
@@ -110,16 +110,7 @@ fn cuts_keep_the_cut_contract() {
     };
     let subject = CutSubject {
         make: &make,
-        cuts: vec![
-            CutSurface::Plane { point: Point3::new(0.3, 0.0, 0.0), normal: Vector3::new(1.0, 0.3, 0.1) },
-            CutSurface::Triangles(vec![[
-                Point3::new(0.42, -0.3, 0.2),
-                Point3::new(0.5, 0.3, 0.35),
-                Point3::new(0.46, -0.3, 0.6),
-            ]]),
-            CutSurface::Triangles(curved_strip()),
-            CutSurface::Plane { point: Point3::new(0.0, 0.0, 0.31), normal: Vector3::z() },
-        ],
+        cuts: contract_cuts(0.31),
         // A lattice translation and a quarter turn about z: voxels are invariant under these only.
         placement: Isometry3::new(Vector3::new(0.3, -1.2, 2.5), Vector3::z() * std::f64::consts::FRAC_PI_2),
         transfer: Transfer::Exact,
