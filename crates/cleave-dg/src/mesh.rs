@@ -250,8 +250,9 @@ impl DgMesh {
         Self::with_face_weights(mesh, material, options, dirichlet, None)
     }
 
-    /// [`DgMesh::new`] with some faces' penalty weights given (`inherited[f]`; the others are
-    /// computed from the geometry): a cut's pieces of an old face keep the old face's weight.
+    /// [`DgMesh::new`] with some interior faces' penalty weights given (`inherited[f]`; the
+    /// others are computed from the geometry): a cut's pieces of an old face keep the old face's
+    /// weight, with BZ; with IP, no less than the geometric one (`face_terms`).
     pub(crate) fn with_face_weights(
         mesh: PolyhedralMesh,
         material: Material,

@@ -101,20 +101,28 @@ impl Cover {
         if polygon.len() < 3 || polygon.iter().any(|p| p.coords.iter().any(|c| !c.is_finite())) {
             return None;
         }
-        let normal = newell_normal(polygon);
+        let centroid = Point3::from(polygon.iter().map(|p| p.coords).sum::<Vector3<f64>>() / polygon.len() as f64);
+        // About the centroid: a thin polygon far from the origin keeps its normal's precision.
+        let relative: Vec<Point3<f64>> = polygon.iter().map(|p| Point3::from(p - centroid)).collect();
+        let normal = newell_normal(&relative);
         let length = normal.norm();
         if length.is_nan() || length <= 0.0 {
             return None;
         }
         let n = normal / length;
-        let centroid = Point3::from(polygon.iter().map(|p| p.coords).sum::<Vector3<f64>>() / polygon.len() as f64);
         let diameter = polygon.iter().map(|p| (p - centroid).norm()).fold(0.0, f64::max);
-        let helper = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
-        let u = n.cross(&helper).normalize() * diameter;
-        let plane = [centroid, centroid + u, centroid + n.cross(&u)];
-        if polygon.iter().any(|p| side_of_plane(&plane, p, tolerance) != 0) {
-            return None;
-        }
+        let plane = if let [a, b, c] = polygon {
+            // A triangle is its own plane, exactly.
+            [*a, *b, *c]
+        } else {
+            let helper = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+            let u = n.cross(&helper).normalize() * diameter;
+            let plane = [centroid, centroid + u, centroid + n.cross(&u)];
+            if polygon.iter().any(|p| side_of_plane(&plane, p, tolerance) != 0) {
+                return None;
+            }
+            plane
+        };
         let mut sides = Vec::new();
         for (k, a) in polygon.iter().enumerate() {
             let b = polygon[(k + 1) % polygon.len()];
@@ -122,7 +130,12 @@ impl Cover {
                 continue;
             }
             let side_plane = [*a, b, a + n * diameter];
-            let inside = side_of_plane(&side_plane, &centroid, tolerance);
+            // The interior is on the side of the corner farthest from this side: none beyond the
+            // tolerance means the polygon is thinner than it (it covers nothing).
+            let away = (b - a).cross(&n);
+            let farthest =
+                polygon.iter().max_by(|p, q| away.dot(&(*p - a)).abs().total_cmp(&away.dot(&(*q - a)).abs()))?;
+            let inside = side_of_plane(&side_plane, farthest, tolerance);
             // Convex: no corner beyond a side.
             if inside == 0 || polygon.iter().any(|p| side_of_plane(&side_plane, p, tolerance) == -inside) {
                 return None;
@@ -141,6 +154,13 @@ impl Cover {
     /// Whether the box `[lo, hi]` may meet the polygon.
     fn may_meet(&self, lo: &Point3<f64>, hi: &Point3<f64>) -> bool {
         (0..3).all(|i| lo[i] <= self.hi[i] && hi[i] >= self.lo[i])
+    }
+
+    /// Whether the cover meets the planar polygon `points` in an area: more than `tolerance`
+    /// times its perimeter (a line or a point within the tolerance is not an area).
+    fn covers(&self, points: &[Point3<f64>], tolerance: f64) -> Result<bool, MeshSplitError> {
+        let perimeter: f64 = (0..points.len()).map(|k| (points[(k + 1) % points.len()] - points[k]).norm()).sum();
+        Ok(self.covered_area(points, tolerance)? > tolerance * perimeter)
     }
 
     /// The area of the planar polygon `points` inside the cover.
@@ -252,6 +272,15 @@ fn cut_mesh(
     cover: Option<&Cover>,
     tolerance: f64,
 ) -> Result<MeshSplit, MeshSplitError> {
+    if let Some((face, vertex)) = mesh
+        .faces
+        .iter()
+        .enumerate()
+        .find_map(|(f, face)| face.polygon.iter().find(|&&v| v as usize >= mesh.vertices.len()).map(|&v| (f, v)))
+    {
+        let source = ElementSplitError::VertexOutOfRange { face, vertex, vertices: mesh.vertices.len() };
+        return Err(MeshSplitError::Element { element: mesh.faces[face].inner as usize, source });
+    }
     let mut made = NewVertices { vertices: mesh.vertices.clone(), inside: HashMap::new() };
     let element_faces = mesh.element_faces();
     let mut parted: Vec<Parted> = Vec::with_capacity(mesh.num_elements);
@@ -293,19 +322,14 @@ fn cut_mesh(
             SplitVertex::Crossing(a, b) => split.crossings[&(a, b)],
         };
         if let Some(cover) = cover {
-            let mut area = 0.0;
+            let mut meets = false;
             for child in split.children.iter().filter(|c| c.side > 0) {
                 for face in child.faces.iter().filter(|f| f.source == FaceSource::Cap) {
                     let points: Vec<Point3<f64>> = face.polygon.iter().map(position).collect();
-                    let perimeter: f64 =
-                        (0..points.len()).map(|k| (points[(k + 1) % points.len()] - points[k]).norm()).sum();
-                    let covered = cover.covered_area(&points, tolerance)?;
-                    if covered > tolerance * perimeter {
-                        area += covered;
-                    }
+                    meets |= cover.covers(&points, tolerance)?;
                 }
             }
-            if area == 0.0 {
+            if !meets {
                 parted.push(whole(&mut next_id, outward));
                 continue;
             }
@@ -398,7 +422,7 @@ fn cut_mesh(
                 None => vec![(polygon, true)],
                 Some(cover) => {
                     let points: Vec<Point3<f64>> = polygon.iter().map(|&v| mesh.vertices[v as usize]).collect();
-                    if cover.covered_area(&points, tolerance)? > 0.0 {
+                    if cover.covers(&points, tolerance)? {
                         made.split_by_cover(polygon, cover, tolerance)?
                     } else {
                         vec![(polygon, false)]
@@ -427,13 +451,15 @@ fn cut_mesh(
                 let (element, polygon) = inner_pieces.into_iter().next().expect("one piece");
                 push(&mut faces, polygon, element, Some(outer_pieces[0].0), Some(f32));
             }
-            (_, 1) if outer_pieces[0].1.len() == old.polygon.len() => {
+            (1.., 1) if is_reversed_cycle(&old.polygon, &outer_pieces[0].1) => {
                 // The outer element holds the whole face; the inner one's pieces couple to it.
                 for (element, polygon) in inner_pieces {
                     push(&mut faces, polygon, element, Some(outer_pieces[0].0), Some(f32));
                 }
             }
-            (1, _) if inner_pieces[0].1.len() == old.polygon.len() => {
+            (1, 1..)
+                if is_reversed_cycle(&inner_pieces[0].1, &old.polygon.iter().rev().copied().collect::<Vec<_>>()) =>
+            {
                 for (element, polygon) in outer_pieces {
                     push(&mut faces, polygon, element, Some(inner_pieces[0].0), Some(f32));
                 }

@@ -26,10 +26,13 @@ fn volumes(mesh: &PolyhedralMesh) -> Vec<f64> {
     mesh.element_faces()
         .iter()
         .map(|faces| {
+            // About a corner of the element, so a mesh far from the origin keeps its digits.
+            let anchor = faces.first().map_or(Point3::origin(), |f| mesh.vertices[f.polygon[0] as usize]);
             faces
                 .iter()
                 .map(|f| {
-                    let p: Vec<Point3<f64>> = f.polygon.iter().map(|&v| mesh.vertices[v as usize]).collect();
+                    let p: Vec<Point3<f64>> =
+                        f.polygon.iter().map(|&v| Point3::from(mesh.vertices[v as usize] - anchor)).collect();
                     let sign = if f.reversed { -1.0 } else { 1.0 };
                     (1..p.len() - 1)
                         .map(|k| sign * p[0].coords.dot(&p[k].coords.cross(&p[k + 1].coords)) / 6.0)
@@ -192,4 +195,25 @@ fn random_triangles_cut_the_sliced_bunny_validly() {
         mesh = split.mesh;
     }
     assert!(opened > 12, "the triangles met the bunny: {opened} elements split or faces opened");
+}
+
+/// A thin triangle far from the origin (height 1e-4 of its length, at 1e3 m) still cuts what it
+/// covers (its plane is its own corners, its normal taken about its centroid); a triangle
+/// thinner than the tolerance, or a mesh naming a vertex it does not have, is refused with an
+/// error, not a panic.
+#[test]
+fn thin_and_far_triangles_cut_and_bad_input_is_refused() {
+    let shift = Vector3::new(1000.0, -700.0, 300.0);
+    let grid = PolyhedralMesh::grid(Point3::origin(), 1.0, [3, 3, 3]);
+    let far = PolyhedralMesh { vertices: grid.vertices.iter().map(|p| p + shift).collect(), ..grid.clone() };
+    // In x = 1.5: a sliver from (y, z) = (−1, 1.5) to (5, 1.5), 6e-4 high at its far corner.
+    let thin = [(-1.0, 1.5), (5.0, 1.5), (-1.0, 1.5006)].map(|(y, z)| Point3::new(1.5, y, z) + shift);
+    let split = check_polygon(&far, &thin, 1e-12 * 3.0 * 3f64.sqrt());
+    assert!(split.split_elements > 0, "the thin triangle split what it crosses");
+    let hair = [(-1.0, 1.5), (5.0, 1.5), (-1.0, 1.5 + 1e-13)].map(|(y, z)| Point3::new(1.5, y, z));
+    assert_eq!(cut_mesh_by_polygon(&grid, &hair, 1e-12), Err(cleave_geometry::MeshSplitError::BadPolygon));
+    let mut broken = grid.clone();
+    broken.faces[5].polygon[0] = 10_000;
+    let error = cut_mesh_by_polygon(&broken, &thin.map(|p| p - shift), 1e-12).unwrap_err();
+    assert!(error.to_string().contains("10000"), "{error}");
 }

@@ -89,7 +89,7 @@ impl CompareBackend for DgBackend {
         let mut free = DgMesh::new(mesh, *material, options, None).map_err(|e| CutError::Build(e.to_string()))?;
         let change = free.cut(surface).map_err(|e| CutError::CannotCut(e.to_string()))?;
         if change.remap == cleave_core::DofRemap::Identity {
-            return Err(CutError::CannotCut("the cut separates nothing".into()));
+            return Err(CutError::CannotCut("the cut changes nothing: it misses the material".into()));
         }
         let weak = WeakDirichlet { on_boundary: dirichlet.region, data: dirichlet.value };
         let dg = DgMesh::new(free.polyhedral_mesh().clone(), *material, options, Some(&weak))

@@ -44,6 +44,13 @@ impl DgMesh {
     }
 }
 
+/// Whether the triangle is degenerate or its smallest height is within `tolerance`.
+fn thinner_than(triangle: &[Point3<Real>; 3], tolerance: Real) -> bool {
+    let twice_area = (triangle[1] - triangle[0]).cross(&(triangle[2] - triangle[0])).norm();
+    let longest = (0..3).map(|k| (triangle[(k + 1) % 3] - triangle[k]).norm()).fold(0.0, Real::max);
+    cleave_geometry::predicates::triangle_is_degenerate(triangle) || twice_area <= tolerance * longest
+}
+
 impl Cuttable for DgMesh {
     /// Cuts along a plane or a triangle soup (each triangle in turn, `cut_mesh_by_polygon`: the
     /// section uncoupled where the triangle covers it, so a cut may end inside the material);
@@ -116,8 +123,8 @@ impl Cuttable for DgMesh {
                 for triangle in triangles {
                     match cut_mesh_by_polygon(&mesh, triangle, tolerance) {
                         Ok(split) => apply(split, &mut mesh, &mut parent, &mut cut_faces),
-                        // A triangle without area covers nothing.
-                        Err(MeshSplitError::BadPolygon) => {}
+                        // A triangle without area, or thinner than the tolerance, covers nothing.
+                        Err(MeshSplitError::BadPolygon) if thinner_than(triangle, tolerance) => {}
                         Err(e) => return Err(fail(e)),
                     }
                 }
@@ -166,15 +173,19 @@ impl Cuttable for DgMesh {
         })
     }
 
-    /// The boundary faces (the original surface's pieces and the cuts'), fanned into triangles;
-    /// a vertex is one per mesh vertex and group of elements joined around it through coupled
-    /// faces holding it (so the two sheets of a cut that ends inside the body share only the
-    /// vertices along its end), evaluated as the mean of the group's elements that hold it on
-    /// their boundary (each element's polynomial at the point), so every piece's surface is
-    /// closed. Fans are exact for convex faces; a cut's face through a non-convex element may be
-    /// non-convex, and its fan then overlaps itself (the signed area and the enclosed volume stay
-    /// right).
+    /// `None` before the first cut; then the boundary faces (the original surface's pieces and
+    /// the cuts'), ear-clipped into
+    /// triangles (a fan only if clipping fails); a vertex is one per mesh vertex and group of
+    /// elements joined around it through coupled faces holding it (so the two sheets of a cut
+    /// that ends inside the body share only the vertices along its end), evaluated as the mean
+    /// of the group's elements that hold it on their boundary (each element's polynomial at the
+    /// point), so every piece's surface is closed.
     fn surface(&self) -> Option<EmbeddedSurface> {
+        // Uncut, the input surface (MLS-embedded, §8) still describes the body, finer than the
+        // sliced cells' faces.
+        if self.epoch == 0 {
+            return None;
+        }
         let (piece_of, _) = self.piece_of_elements();
         let nb = self.exps.len();
         // (vertex, element) incidences, joined through the coupled faces holding the vertex.

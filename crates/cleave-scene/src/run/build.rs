@@ -174,8 +174,12 @@ impl Simulation {
         let TriangleMesh { vertices: surface_vertices, triangles: mut surface_triangles, .. } = built.surface;
         let mut surface_on_cut = vec![false; surface_triangles.len()];
         let mut surface_piece = Vec::new();
+        let can_cut = discretization.as_cuttable().is_some();
         let cut_surface = discretization.as_cuttable().and_then(|c| c.surface());
-        let cut_surface_present = cut_surface.is_some();
+        // Pieces are to be expected: a body that renders its own cut surface, or one that can cut
+        // in a scene that cuts or fractures (DG keeps its MLS surface until its first cut).
+        let pieces_expected = cut_surface.is_some()
+            || (can_cut && (!scene.timeline.is_empty() || scene.fracture.is_some() || scene.rigid_fragments.is_some()));
         let info = BuildInfo {
             backend: discretization.name().to_string(),
             elements: element_count,
@@ -256,7 +260,7 @@ impl Simulation {
         });
         let contact_spec = match &scene.contact {
             Some(explicit) => explicit.clone(),
-            None if cut_surface_present => {
+            None if pieces_expected => {
                 let (stiffness, damping) = first_collider.unwrap_or((DEFAULT_CONTACT_STIFFNESS, 0.0));
                 Some(ContactSpec {
                     stiffness: Positive(stiffness),
