@@ -15,6 +15,21 @@ use cleave_testkit::compare::{
     stretch_start,
 };
 
+/// The DG discretization of `mesh` with the Dirichlet data imposed weakly, as a comparison problem
+/// (its load vector handed over, no DOF pinned).
+fn weakly_clamped(
+    mesh: PolyhedralMesh,
+    material: &Material,
+    options: DgOptions,
+    dirichlet: &DirichletSpec,
+) -> Result<BuiltProblem, String> {
+    let weak = WeakDirichlet { on_boundary: dirichlet.region, data: dirichlet.value };
+    let dg = DgMesh::new(mesh, *material, options, Some(&weak)).map_err(|e| e.to_string())?;
+    let (elements, search_seconds) = (dg.num_elements(), dg.penalty_search_seconds());
+    let dirichlet_load = dg.dirichlet_load().to_vec();
+    Ok(BuiltProblem { discretization: Box::new(dg), prescribed: Vec::new(), dirichlet_load, elements, search_seconds })
+}
+
 /// Registration of `cleave-dg`: variants `bz-1`, `ip-1`, `bz-2`, `ip-2` (flux, degree).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct DgBackend;
@@ -53,18 +68,7 @@ impl CompareBackend for DgBackend {
     ) -> Result<BuiltProblem, BuildError> {
         let options = parse_variant(variant)?;
         let mesh = PolyhedralMesh::grid(grid.origin, grid.h, grid.dims);
-        let weak = WeakDirichlet { on_boundary: dirichlet.region, data: dirichlet.value };
-        let dg = DgMesh::new(mesh, *material, options, Some(&weak)).map_err(|e| BuildError(e.to_string()))?;
-        let elements = dg.num_elements();
-        let search_seconds = dg.penalty_search_seconds();
-        let dirichlet_load = dg.dirichlet_load().to_vec();
-        Ok(BuiltProblem {
-            discretization: Box::new(dg),
-            prescribed: Vec::new(),
-            dirichlet_load,
-            elements,
-            search_seconds,
-        })
+        weakly_clamped(mesh, material, options, dirichlet).map_err(BuildError)
     }
 
     fn cuts(&self, _variant: &str) -> bool {
@@ -91,19 +95,8 @@ impl CompareBackend for DgBackend {
         if change.remap == cleave_core::DofRemap::Identity {
             return Err(CutError::CannotCut("the cut changes nothing: it misses the material".into()));
         }
-        let weak = WeakDirichlet { on_boundary: dirichlet.region, data: dirichlet.value };
-        let dg = DgMesh::new(free.polyhedral_mesh().clone(), *material, options, Some(&weak))
-            .map_err(|e| CutError::Build(e.to_string()))?;
-        let elements = dg.num_elements();
-        let search_seconds = dg.penalty_search_seconds();
-        let dirichlet_load = dg.dirichlet_load().to_vec();
-        let built = BuiltProblem {
-            discretization: Box::new(dg),
-            prescribed: Vec::new(),
-            dirichlet_load,
-            elements,
-            search_seconds,
-        };
+        let built =
+            weakly_clamped(free.polyhedral_mesh().clone(), material, options, dirichlet).map_err(CutError::Build)?;
         Ok(CutProblem { built, change })
     }
 
