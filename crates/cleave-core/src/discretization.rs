@@ -206,8 +206,15 @@ pub trait Fracturable {
 
 /// Backends that refine adaptively.
 pub trait Refinable {
-    /// Refines the elements whose error indicator exceeds `tolerance`.
-    fn refine(&mut self, x: &[Real], tolerance: Real) -> Result<Option<TopologyChange>, TopologyError>;
+    /// Refines the elements whose largest absolute principal stress at positions `x` (element
+    /// frames `rotations`, as for [`Fracturable::fracture`]) exceeds `threshold` (Pa); the field
+    /// is carried across exactly. `None` if nothing was refined.
+    fn refine(
+        &mut self,
+        x: &[Real],
+        rotations: &[Matrix3<Real>],
+        threshold: Real,
+    ) -> Result<Option<TopologyChange>, TopologyError>;
 }
 
 /// A spatial discretization of an elastic solid, seen through its warped stiffness blocks.

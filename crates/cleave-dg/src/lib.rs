@@ -12,6 +12,8 @@
 //!   definite; corotation warps each face's consistency part by the rotation of the element whose
 //!   strain it uses, the penalty part not at all (module `mesh`).
 //! - Surfaces are embedded by MLS over the stitched vertex field (module `mls`).
+//! - Cutting (`Cuttable`, §13) and stress-driven refinement 1→8 or 1→2 (`Refinable`, §14) split
+//!   elements into polyhedra and carry each parent's polynomial to its children exactly.
 //!
 //! Derivations: `docs/math/dg.md`.
 
@@ -20,4 +22,4 @@ mod mesh;
 pub mod mls;
 pub mod quadrature;
 
-pub use mesh::{DgError, DgMesh, DgOptions, Flux, WeakDirichlet};
+pub use mesh::{DgError, DgMesh, DgOptions, Flux, RefineSplit, Refinement, WeakDirichlet};

@@ -16,6 +16,12 @@ use nalgebra::DMatrix;
 use rayon::prelude::*;
 
 mod cut;
+mod refine;
+
+/// How far a face's vertex may lie off its plane, in face diameters (`PolyhedralMesh::validate`).
+const PLANARITY: Real = 1e-8;
+
+pub use refine::{RefineSplit, Refinement};
 
 /// The numerical flux on interior faces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -44,6 +50,11 @@ pub struct DgOptions {
     /// (docs/math/dg.md §9 and docs/results/stability.md). `K(η)` is definite for every η above
     /// the first definite one, so no further check is needed.
     pub penalty_margin: Real,
+    /// A cut's child below this fraction of the volume of the element it came from is merged
+    /// into a neighbour (docs/math/dg.md §13.6); 0 turns merging off. Merging moves the
+    /// sliver's material points by the jump between its polynomial and the neighbour's; without
+    /// it every point keeps its motion exactly, but thin children condition the bases poorly.
+    pub sliver_fraction: Real,
 }
 
 impl DgOptions {
@@ -55,7 +66,7 @@ impl DgOptions {
             Flux::InteriorPenalty => 1.0,
             Flux::BabuskaZlamal => 10.0,
         };
-        Self { degree, flux, penalty, max_doublings: 24, penalty_margin: 1.0 }
+        Self { degree, flux, penalty, max_doublings: 24, penalty_margin: 1.0, sliver_fraction: 0.05 }
     }
 }
 
@@ -89,6 +100,9 @@ pub enum DgError {
     /// A penalty margin below 1 or not finite.
     #[error("penalty margin {0} must be a finite number ≥ 1")]
     PenaltyMargin(Real),
+    /// A sliver fraction outside [0, 1).
+    #[error("sliver fraction {0} must be a number in [0, 1)")]
+    SliverFraction(Real),
     /// An element whose Gram matrix is singular.
     #[error("element {element} is degenerate (volume {volume:e} m³): its basis cannot be orthonormalized")]
     DegenerateElement {
@@ -211,6 +225,17 @@ pub struct DgMesh {
     /// Per face: its penalty weight `η_f` per unit η (docs/math/dg.md §4), kept by the pieces
     /// of a face a cut splits (§13) so that a cut leaves every jump's energy as it was.
     face_weights: Vec<Real>,
+    /// Per element: how many refinements made it (§14; a cut's children keep their parent's).
+    depth: Vec<u32>,
+    /// How `Refinable::refine` splits.
+    refinement: Refinement,
+    /// Per face: whether it carries weak Dirichlet data.
+    dirichlet_faces: Vec<bool>,
+    /// The last cut's sliver merging: (merged, left below the threshold without a neighbour).
+    last_slivers: (usize, usize),
+    /// Whether the Dirichlet data is a clamp (`u = 0`, [`DgMesh::clamped`]) that cuts and
+    /// refinements keep; other data cannot be rebuilt.
+    clamp_kept: bool,
 }
 
 impl std::fmt::Debug for DgMesh {
@@ -247,7 +272,23 @@ impl DgMesh {
         options: DgOptions,
         dirichlet: Option<&WeakDirichlet<'_>>,
     ) -> Result<Self, DgError> {
-        Self::with_face_weights(mesh, material, options, dirichlet, None)
+        Self::with_face_weights(mesh, material, options, dirichlet, None, None)
+    }
+
+    /// [`DgMesh::new`] clamped (weak Dirichlet data `u = 0`) on the boundary faces whose centroid
+    /// satisfies `on_boundary`: the clamp is kept by cuts and refinements (the pieces of a
+    /// clamped face stay clamped), which data given as a function cannot be.
+    pub fn clamped(
+        mesh: PolyhedralMesh,
+        material: Material,
+        options: DgOptions,
+        on_boundary: &(dyn Fn(&Point3<Real>) -> bool + Sync),
+    ) -> Result<Self, DgError> {
+        let zero = |_: &Point3<Real>| Vector3::zeros();
+        let dirichlet = WeakDirichlet { on_boundary, data: &zero };
+        let mut dg = Self::with_face_weights(mesh, material, options, Some(&dirichlet), None, None)?;
+        dg.clamp_kept = true;
+        Ok(dg)
     }
 
     /// [`DgMesh::new`] with some interior faces' penalty weights given (`inherited[f]`; the
@@ -259,7 +300,11 @@ impl DgMesh {
         options: DgOptions,
         dirichlet: Option<&WeakDirichlet<'_>>,
         inherited: Option<&[Option<Real>]>,
+        clamped_faces: Option<&[bool]>,
     ) -> Result<Self, DgError> {
+        if clamped_faces.is_some_and(|c| c.len() != mesh.faces.len()) {
+            return Err(DgError::Solver("internal: one clamp flag per face expected".into()));
+        }
         if !(1..=2).contains(&options.degree) {
             return Err(DgError::Degree(options.degree));
         }
@@ -269,7 +314,10 @@ impl DgMesh {
         if !(options.penalty_margin >= 1.0 && options.penalty_margin.is_finite()) {
             return Err(DgError::PenaltyMargin(options.penalty_margin));
         }
-        mesh.validate(1e-8)?;
+        if !(0.0..1.0).contains(&options.sliver_fraction) {
+            return Err(DgError::SliverFraction(options.sliver_fraction));
+        }
+        mesh.validate(PLANARITY)?;
         let degree = options.degree;
         let exps = exponents(degree);
         let nb = exps.len();
@@ -339,16 +387,27 @@ impl DgMesh {
             .map(|e| element_stiffness(&mesh, &outward_faces[e], &bases[e], &exps, &material))
             .collect();
 
+        // Dirichlet faces: the kept clamp's, or the boundary faces `on_boundary` selects.
+        let dirichlet_faces: Vec<bool> = match clamped_faces {
+            Some(kept) => mesh.faces.iter().enumerate().map(|(f, face)| face.outer.is_none() && kept[f]).collect(),
+            None => (0..mesh.faces.len())
+                .into_par_iter()
+                .map(|f| {
+                    mesh.faces[f].outer.is_none()
+                        && dirichlet.is_some_and(|d| (d.on_boundary)(&face_area_normal_centroid(&mesh, f).2))
+                })
+                .collect(),
+        };
         let face_terms: Vec<Option<FaceTerms>> = (0..mesh.faces.len())
             .into_par_iter()
             .map(|f| {
                 let weight = inherited.and_then(|w| w.get(f).copied().flatten());
-                face_terms(&mesh, f, &bases, &exps, &material, options.flux, dirichlet, weight)
+                face_terms(&mesh, f, &bases, &exps, &material, options.flux, dirichlet_faces[f], weight)
             })
             .collect();
         let face_weights = face_terms.iter().map(|t| t.as_ref().map_or(0.0, |t| t.weight)).collect();
 
-        let has_dirichlet = face_terms.iter().flatten().any(|t| t.nodes.len() == nb);
+        let has_dirichlet = dirichlet_faces.iter().any(|&d| d);
 
         let name = format!(
             "dg-{}-{}",
@@ -378,10 +437,23 @@ impl DgMesh {
             epoch: 0,
             cut_faces: Vec::new(),
             face_weights,
+            depth: Vec::new(),
+            refinement: Refinement::default(),
+            dirichlet_faces,
+            clamp_kept: clamped_faces.is_some(),
+            last_slivers: (0, 0),
         };
+        this.depth = vec![0; this.mesh.num_elements];
         this.cut_faces = vec![false; this.mesh.faces.len()];
         let search = std::time::Instant::now();
         let mut check: Option<DefinitenessCheck> = None;
+        // A piece without a Dirichlet face moves freely (a cut may free one from the clamp).
+        let (piece_of, pieces) = this.piece_of_elements();
+        let mut held = vec![false; pieces];
+        for (face, _) in this.mesh.faces.iter().zip(&this.dirichlet_faces).filter(|(_, d)| **d) {
+            held[piece_of[face.inner as usize]] = true;
+        }
+        let some_piece_free = held.iter().any(|h| !h);
         // The penalty doubling; the Dirichlet load depends on η, so it is built with the final η.
         loop {
             this.blocks = build_blocks(num_nodes, &element_stiffness, &face_terms, this.penalty)?;
@@ -392,12 +464,9 @@ impl DgMesh {
             }
             let check = match &mut check {
                 Some(check) => check,
-                None => check.insert(DefinitenessCheck::new(
-                    &this.blocks,
-                    num_nodes,
-                    this.num_frames(),
-                    !this.has_dirichlet,
-                )?),
+                None => {
+                    check.insert(DefinitenessCheck::new(&this.blocks, num_nodes, this.num_frames(), some_piece_free)?)
+                }
             };
             if check.holds(&this.blocks)? {
                 break;
@@ -414,7 +483,8 @@ impl DgMesh {
         }
         this.penalty_search_seconds = search.elapsed().as_secs_f64();
         let mut dirichlet_load = vec![0.0; 3 * num_nodes];
-        if let Some(dirichlet) = dirichlet {
+        // A kept clamp has data 0: no load.
+        if let Some(dirichlet) = dirichlet.filter(|_| clamped_faces.is_none()) {
             let scaled = WeakDirichletScaled { inner: dirichlet, penalty: this.penalty };
             add_dirichlet_load(
                 &this.mesh,
@@ -428,6 +498,12 @@ impl DgMesh {
         }
         this.dirichlet_load = dirichlet_load;
         Ok(this)
+    }
+
+    /// What the last cut's sliver merging did: elements merged into a neighbour, and elements
+    /// left below the threshold (a piece of their own: no neighbour to merge into).
+    pub fn last_cut_slivers(&self) -> (usize, usize) {
+        self.last_slivers
     }
 
     /// The global penalty η the doubling reached.
@@ -458,6 +534,11 @@ impl DgMesh {
     /// Number of elements.
     pub fn num_elements(&self) -> usize {
         self.mesh.num_elements
+    }
+
+    /// Element `e`'s volume (exact, from its moments).
+    pub fn element_volume(&self, e: usize) -> Real {
+        self.bases[e].volume
     }
 
     /// Basis functions per element.
@@ -672,12 +753,12 @@ fn face_terms(
     exps: &[[u32; 3]],
     material: &Material,
     flux: Flux,
-    dirichlet: Option<&WeakDirichlet<'_>>,
+    is_dirichlet: bool,
     weight: Option<Real>,
 ) -> Option<FaceTerms> {
     let nb = exps.len() as u32;
     let face = &mesh.faces[f];
-    let (area, normal, centroid) = face_area_normal_centroid(mesh, f);
+    let (area, normal, _) = face_area_normal_centroid(mesh, f);
     let (elements, signs, average, eta_f): (Vec<usize>, &[Real], Real, Real) = match face.outer {
         Some(outer) => {
             let (em, ep) = (face.inner as usize, outer as usize);
@@ -693,13 +774,19 @@ fn face_terms(
             (vec![em, ep], &[1.0, -1.0], 0.5, eta_f)
         }
         None => {
-            let dirichlet = dirichlet?;
-            if !(dirichlet.on_boundary)(&centroid) {
+            if !is_dirichlet {
                 return None;
             }
             let e = face.inner as usize;
-            // The weight of an interior face between two such elements (docs/math/dg.md §4).
-            (vec![e], &[1.0], 1.0, 2.0 * material.youngs_modulus * area / bases[e].volume)
+            // The weight of an interior face between two such elements (docs/math/dg.md §4); a
+            // piece of a clamped face keeps the face's, as an interior face's piece does.
+            let geometric = 2.0 * material.youngs_modulus * area / bases[e].volume;
+            let eta_f = match (weight, flux) {
+                (Some(w), Flux::BabuskaZlamal) => w,
+                (Some(w), Flux::InteriorPenalty) => w.max(geometric),
+                (None, _) => geometric,
+            };
+            (vec![e], &[1.0], 1.0, eta_f)
         }
     };
     let sides: Vec<&ElementBasis> = elements.iter().map(|&e| &bases[e]).collect();
@@ -858,6 +945,10 @@ impl Discretization for DgMesh {
     }
 
     fn as_cuttable(&mut self) -> Option<&mut dyn cleave_core::Cuttable> {
+        Some(self)
+    }
+
+    fn as_refinable(&mut self) -> Option<&mut dyn cleave_core::Refinable> {
         Some(self)
     }
 

@@ -29,7 +29,8 @@
 //!   into its pieces on each side, sides exact: the face step of cutting general polyhedra (DG);
 //!   [`split_element`] (module `element_split`): the element step, a closed polyhedron split
 //!   into its connected children, capped by the section; [`split_mesh_by_plane`] (module
-//!   `mesh_split`): the mesh step, every element a plane crosses split, the section uncoupled.
+//!   `mesh_split`): the mesh step, every element a plane crosses split, the section uncoupled;
+//!   [`split_mesh_element`]: one element split, its section coupled (refinement).
 //!
 //! The library performs no file or terminal I/O and reports bad input as
 //! [`GeometryError`] values naming the offending triangle, edge, vertex or OBJ line.
@@ -71,7 +72,7 @@ pub use hex_slice::{
 pub use inside::{InsideTester, polygon_winding_number};
 pub use merge::{MergeReport, merge_small_elements};
 pub use mesh::TriangleMesh;
-pub use mesh_split::{MeshSplit, MeshSplitError, cut_mesh_by_polygon, split_mesh_by_plane};
+pub use mesh_split::{MeshSplit, MeshSplitError, cut_mesh_by_polygon, split_mesh_by_plane, split_mesh_element};
 pub use moments::{
     Frame, MAX_MOMENT_DEGREE, element_frame, element_moments, element_moments_from_faces, element_volume_centroid,
     face_area_normal_centroid, face_moments, monomial_exponents, monomial_index, num_monomials, shift_moments,

@@ -63,7 +63,22 @@ pub fn split_mesh_by_plane(
     plane: &[Point3<f64>; 3],
     tolerance: f64,
 ) -> Result<MeshSplit, MeshSplitError> {
-    cut_mesh(mesh, plane, None, tolerance)
+    cut_mesh(mesh, plane, None, None, tolerance)
+}
+
+/// Splits element `element` of `mesh` by the plane through `plane` into children joined through
+/// their section (a coupled face): refinement (kaufmann2008 §10; docs/math/dg.md §14). The faces
+/// the plane crosses are split as by a cut, their pieces coupled to the neighbour, which keeps
+/// its element whole (its face now has more corners: DG elements may be any polyhedron); no face
+/// is uncoupled. An element the plane does not cross, or an index past the last element, leaves
+/// the mesh as it is (`split_elements` 0).
+pub fn split_mesh_element(
+    mesh: &PolyhedralMesh,
+    element: usize,
+    plane: &[Point3<f64>; 3],
+    tolerance: f64,
+) -> Result<MeshSplit, MeshSplitError> {
+    cut_mesh(mesh, plane, None, Some(element), tolerance)
 }
 
 /// Cuts `mesh` by the planar convex polygon `polygon` (corners in order, either orientation),
@@ -84,7 +99,7 @@ pub fn cut_mesh_by_polygon(
 ) -> Result<MeshSplit, MeshSplitError> {
     let cover = Cover::new(polygon, tolerance).ok_or(MeshSplitError::BadPolygon)?;
     let plane = cover.plane;
-    cut_mesh(mesh, &plane, Some(&cover), tolerance)
+    cut_mesh(mesh, &plane, Some(&cover), None, tolerance)
 }
 
 /// The convex polygon a cut covers: its plane and the planes through its sides, normal to it,
@@ -266,10 +281,14 @@ struct Parted {
     caps: Vec<(u32, u32, Vec<u32>)>,
 }
 
+/// The mesh step of a cut (`refine_only: None`: every element the section of `plane` ∩ `cover`
+/// meets is split and the section uncoupled) or of a refinement (`Some(e)`: element `e` alone,
+/// its section coupled).
 fn cut_mesh(
     mesh: &PolyhedralMesh,
     plane: &[Point3<f64>; 3],
     cover: Option<&Cover>,
+    refine_only: Option<usize>,
     tolerance: f64,
 ) -> Result<MeshSplit, MeshSplitError> {
     if let Some((face, vertex)) = mesh
@@ -300,6 +319,10 @@ fn cut_mesh(
                 caps: Vec::new(),
             }
         };
+        if refine_only.is_some_and(|only| only != e) {
+            parted.push(whole(&mut next_id, outward));
+            continue;
+        }
         if let Some(cover) = cover {
             let (mut lo, mut hi) = (Point3::from([f64::MAX; 3]), Point3::from([f64::MIN; 3]));
             for &v in outward.iter().flatten() {
@@ -378,8 +401,11 @@ fn cut_mesh(
         parted.push(Parted { first, children, caps });
     }
 
+    // A refinement uncouples nothing: a face in the plane stays as it is.
     let in_plane = |f: &PolyFace| {
-        f.outer.is_some() && f.polygon.iter().all(|&v| side_of_plane(plane, &mesh.vertices[v as usize], tolerance) == 0)
+        refine_only.is_none()
+            && f.outer.is_some()
+            && f.polygon.iter().all(|&v| side_of_plane(plane, &mesh.vertices[v as usize], tolerance) == 0)
     };
     let mut faces: Vec<PolyFace> = Vec::new();
     let mut face_source: Vec<Option<u32>> = Vec::new();
@@ -488,7 +514,7 @@ fn cut_mesh(
     for part in &parted {
         for (plus, minus, polygon) in &part.caps {
             let pieces = match cover {
-                None => vec![(polygon.clone(), true)],
+                None => vec![(polygon.clone(), refine_only.is_none())],
                 Some(cover) => made.split_by_cover(polygon.clone(), cover, tolerance)?,
             };
             for (polygon, covered) in pieces {

@@ -8,7 +8,7 @@ use crate::backend::{
 };
 use cleave_core::{CutSurface, Cuttable};
 use cleave_core::{Discretization, Material, Matrix3, Point3, Real, Vector3};
-use cleave_dg::{DgMesh, DgOptions, Flux, WeakDirichlet};
+use cleave_dg::{DgMesh, DgOptions, Flux, RefineSplit, Refinement, WeakDirichlet};
 use cleave_geometry::PolyhedralMesh;
 use cleave_testkit::compare::{
     BoxGrid, BuildError, BuiltProblem, CompareBackend, CutError, CutProblem, DirichletSpec, ExtremeCase, NotApplicable,
@@ -168,6 +168,39 @@ struct DgSettings {
     /// Factor on the first positive definite penalty (docs/math/dg.md §9).
     #[serde(default)]
     penalty_margin: Option<Real>,
+    /// How the scene's `refinement` splits an element (docs/math/dg.md §14).
+    #[serde(default)]
+    refine: RefineSetting,
+}
+
+/// How DG refines, in scene settings: `refine: (split: Halves, max_depth: 3)`.
+#[derive(Clone, Copy, Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RefineSetting {
+    /// `Octants` (1→8) or `Halves` (1→2).
+    #[serde(default)]
+    split: SplitSetting,
+    /// Refinements an element may come from.
+    #[serde(default = "three")]
+    max_depth: u32,
+}
+
+impl Default for RefineSetting {
+    fn default() -> Self {
+        Self { split: SplitSetting::Octants, max_depth: 3 }
+    }
+}
+
+/// 1→8 or 1→2.
+#[derive(Clone, Copy, Debug, Default, serde::Deserialize, PartialEq, Eq)]
+enum SplitSetting {
+    #[default]
+    Octants,
+    Halves,
+}
+
+fn three() -> u32 {
+    3
 }
 
 fn one() -> usize {
@@ -229,10 +262,21 @@ impl Backend for DgBackend {
             }
         }
         let on_boundary = |p: &Point3<Real>| request.pins.iter().any(|region| region.contains(p.coords.as_slice()));
-        let zero = |_: &Point3<Real>| Vector3::zeros();
-        let dirichlet = WeakDirichlet { on_boundary: &on_boundary, data: &zero };
-        let dg = DgMesh::new(poly, request.material, options, (!request.pins.is_empty()).then_some(&dirichlet))
-            .map_err(|e| BackendError::Build(format!("discretization: {e}")))?;
+        let dg = if request.pins.is_empty() {
+            DgMesh::new(poly, request.material, options, None)
+        } else {
+            // A clamp the mesh keeps through cuts and refinements.
+            DgMesh::clamped(poly, request.material, options, &on_boundary)
+        }
+        .map_err(|e| BackendError::Build(format!("discretization: {e}")))?;
+        let mut dg = dg;
+        dg.set_refinement(Refinement {
+            split: match settings.refine.split {
+                SplitSetting::Octants => RefineSplit::Octants,
+                SplitSetting::Halves => RefineSplit::Halves,
+            },
+            max_depth: settings.refine.max_depth,
+        });
         let pins = ResolvedPins { pinned_dofs: Vec::new(), extra_load: dg.dirichlet_load().to_vec() };
         let elements = dg.num_elements();
         Ok(BuiltSolid { discretization: Box::new(dg), elements, element_size: h, pins, surface })
@@ -241,14 +285,10 @@ impl Backend for DgBackend {
     fn resolve_pins(
         &self,
         _discretization: &dyn Discretization,
-        pins: &[Region],
+        _pins: &[Region],
     ) -> Result<ResolvedPins, BackendError> {
-        // The weak clamp is built into the DG mesh with its faces; DG has no topology changes
-        // yet, so pins are only resolved by `build_solid`.
-        if pins.is_empty() {
-            Ok(ResolvedPins::default())
-        } else {
-            Err(BackendError::Build("dg resolves its weak pins only when the mesh is built".into()))
-        }
+        // The weak clamp is built into the DG mesh with its faces (`DgMesh::clamped`) and kept
+        // by cuts and refinements; its data is u = 0, so it has no load.
+        Ok(ResolvedPins::default())
     }
 }

@@ -66,6 +66,10 @@ pub struct Scene {
     /// Stress fracture: when it is checked (needs the material's `tensile_strength`).
     #[serde(default)]
     pub fracture: Option<FractureSpec>,
+    /// Stress-driven adaptive refinement (a backend that refines; how it splits is in its
+    /// settings).
+    #[serde(default)]
+    pub refinement: Option<RefinementSpec>,
     /// Rigid fragments: free pieces that move as rigid bodies (rapier) until an impact.
     #[serde(default)]
     pub rigid_fragments: Option<RigidSpec>,
@@ -242,6 +246,18 @@ pub struct FractureSpec {
     /// `rigid_fragments`. Absent: check all the time.
     #[serde(default)]
     pub after_impacts: Option<u32>,
+}
+
+/// When and where the body refines: elements whose largest absolute principal stress exceeds
+/// `stress` split (kaufmann2008 §10).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RefinementSpec {
+    /// The stress threshold [Pa].
+    pub stress: Positive,
+    /// Check after every this many steps (1: every step).
+    #[serde(default = "one_u32")]
+    pub every: u32,
 }
 
 /// When a free piece moves as a rigid body and when it returns (docs/math/rigid-fragments.md).

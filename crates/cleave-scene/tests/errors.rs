@@ -105,9 +105,10 @@ fn open_mesh_names_the_boundary_edge() {
 }
 
 #[test]
-fn a_cut_the_body_cannot_take_is_a_clear_error_at_its_time() {
-    // Every backend cuts now, but a DG body with pins (weak Dirichlet data) cannot be cut yet
-    // (issue 38): the run stops at the cut with the cause, not a panic.
+fn a_pinned_dg_body_cuts_and_keeps_its_clamp_on_the_held_piece() {
+    // The clamp (weak u = 0 on the faces at x = 0) is kept by the cut: the held half stays,
+    // the free half falls. The free piece makes the penalty search shift its check (docs/math/
+    // dg.md §13.1); without it the rebuild would find no positive definite stiffness.
     let text = GOOD
         .replace(r#"backend: "voxel","#, r#"backend: "dg","#)
         .replace(r#""voxel": (cell_size: 0.25)"#, r#""dg": (cell_size: 0.25)"#)
@@ -117,8 +118,46 @@ fn a_cut_the_body_cannot_take_is_a_clear_error_at_its_time() {
         );
     let loaded = parse_scene(Path::new("test.ron"), &text).unwrap();
     let mut simulation = Simulation::build(&loaded, None).unwrap();
-    let message = (0..3).find_map(|_| simulation.step().err()).expect("the cut must fail").to_string();
-    assert!(message.contains("cut at t = ") && message.contains("pins"), "{message}");
+    for _ in 0..3 {
+        simulation.step().unwrap();
+    }
+    let summary = simulation.cut_summary();
+    assert_eq!(summary.changes, 1);
+    assert_eq!(summary.pieces.len(), 2, "the plane x = 0.5 parts the 4 × 2 × 2 cubes in two");
+    for piece in &summary.pieces {
+        assert!((piece.volume - 0.125).abs() < 1e-12, "{}", piece.volume);
+    }
+}
+
+#[test]
+fn refinement_on_a_backend_that_cannot_refine_is_a_build_error() {
+    let text = GOOD.replace("    steps: 3,\n", "    steps: 3,\n    refinement: Some((stress: 1.0e3)),\n");
+    let loaded = parse_scene(Path::new("test.ron"), &text).unwrap();
+    let message = Simulation::build(&loaded, None).err().expect("voxel does not refine").to_string();
+    assert!(message.contains("`refinement`") && message.contains("cannot refine"), "{message}");
+}
+
+#[test]
+fn a_dg_box_refines_in_a_scene_keeping_its_volume() {
+    // 4 × 2 × 2 cubes clamped at x = 0 sag under gravity: every cube is stressed above 1 µPa at
+    // the first check, so 1→8 once (max depth 1) makes 16 × 8 elements.
+    let text = GOOD
+        .replace(r#"backend: "voxel","#, r#"backend: "dg","#)
+        .replace(r#""voxel": (cell_size: 0.25)"#, r#""dg": (cell_size: 0.25, refine: (split: Octants, max_depth: 1))"#)
+        .replace(
+            "    steps: 3,\n",
+            "    steps: 3,\n    pins: [Region(min: (-0.01, -1.0, -1.0), max: (0.01, 1.0, 1.0))],\n    refinement: Some((stress: 1.0e-6, every: 1)),\n",
+        );
+    let loaded = parse_scene(Path::new("test.ron"), &text).unwrap();
+    let mut simulation = Simulation::build(&loaded, None).unwrap();
+    for _ in 0..3 {
+        simulation.step().unwrap();
+    }
+    let summary = simulation.cut_summary();
+    assert_eq!(summary.changes, 1, "depth 1 stops after the first refinement");
+    assert_eq!(summary.elements, 128);
+    assert_eq!(summary.pieces.len(), 1);
+    assert!((summary.pieces[0].volume - 0.25).abs() < 1e-12);
 }
 
 #[test]

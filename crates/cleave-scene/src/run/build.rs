@@ -111,6 +111,14 @@ impl Simulation {
         }
         // Capabilities the timeline and fracture need, before anything is built.
         let capabilities = registration.capabilities();
+        if let Some(refinement) = &scene.refinement {
+            if !capabilities.refine {
+                return Err(build_error(format!("`refinement` is set, but the {name} backend cannot refine")));
+            }
+            if refinement.every == 0 {
+                return Err(build_error("`refinement.every` must be at least 1 step".into()));
+            }
+        }
         if let Some(fracture) = &scene.fracture {
             if !capabilities.fracture {
                 return Err(build_error(format!("`fracture` is set, but the {name} backend cannot fracture")));
@@ -190,6 +198,8 @@ impl Simulation {
             seconds: 0.0,
         };
 
+        // A body that does not render its own surface embeds the input's again after a change.
+        let input_surface = cut_surface.is_none().then(|| surface_vertices.clone());
         // A cuttable backend renders its own surface (it changes with every cut).
         let surface_points = match cut_surface {
             Some(own) => {
@@ -395,6 +405,11 @@ impl Simulation {
                 after_impacts: f.after_impacts.map(u64::from),
                 until: 0,
             }),
+            refinement: scene
+                .refinement
+                .as_ref()
+                .map(|r| RefinementCheck { every: u64::from(r.every), stress: r.stress.0 }),
+            input_surface,
             discretization: Arc::from(discretization),
             integrator,
             surface_triangles,

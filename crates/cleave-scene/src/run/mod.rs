@@ -163,6 +163,11 @@ pub struct Simulation {
     cut_ahead: bool,
     /// Stress fracture: when it is checked, and at what strength.
     fracture: Option<FractureCheck>,
+    /// Adaptive refinement: when it is checked, and at what stress.
+    refinement: Option<RefinementCheck>,
+    /// The input surface's rest vertices, embedded again after a change when the body does not
+    /// render its own surface (DG refined but not cut).
+    input_surface: Option<Vec<Point3<Real>>>,
     /// Rigid fragments (`rigid_fragments` in the scene).
     rigid: Option<RigidHybrid>,
     /// Each pin region's velocity (zero: held still).
@@ -184,6 +189,15 @@ struct FractureCheck {
     after_impacts: Option<u64>,
     /// …that is, up to this step.
     until: u64,
+}
+
+/// When adaptive refinement is checked.
+#[derive(Clone, Copy, Debug)]
+struct RefinementCheck {
+    /// After every this many steps…
+    every: u64,
+    /// …at this stress [Pa].
+    stress: Real,
 }
 
 /// A topology change just made, with what the rest of the simulation needs to follow it.
@@ -438,14 +452,62 @@ impl Simulation {
         })
     }
 
+    /// Refines the body where its stress exceeds `stress` (`Refinable`) and carries everything
+    /// across as a cut does; recorded as a `refine` event.
+    fn apply_refinement(&mut self, stress: Real) -> Result<(), SceneError> {
+        let clock = Instant::now();
+        let path = self.path.clone();
+        let build_error = |message: String| SceneError::Build { path: path.clone(), message };
+        let before = (self.discretization.num_nodes(), self.discretization.num_frames(), self.cuts.pieces.len());
+        let (backend, time) = (self.info.backend.clone(), self.integrator.time());
+        self.body_mut()?;
+        let body = Arc::get_mut(&mut self.discretization).expect("body_mut made the body unshared");
+        let refinable =
+            body.as_refinable().ok_or_else(|| build_error(format!("the {backend} backend cannot refine")))?;
+        let Some(change) = refinable
+            .refine(self.integrator.positions(), self.integrator.rotations(), stress)
+            .map_err(|e| build_error(format!("refinement at t = {time} s: {e}")))?
+        else {
+            return Ok(());
+        };
+        let (surface, pieces) = match body.as_cuttable() {
+            Some(cuttable) => (cuttable.surface(), cuttable.pieces()),
+            None => (None, self.cuts.pieces.clone()),
+        };
+        self.prepared = None;
+        self.finish_change(ChangeMade {
+            change,
+            surface,
+            pieces,
+            ahead: None,
+            prepared_contact: None,
+            clock,
+            before,
+            kind: "refine",
+        })
+    }
+
     /// After the body changed: the integrator carries the state across, pins, contact rows,
     /// probes and the render surface are resolved again, and the change is recorded.
     fn finish_change(&mut self, made: ChangeMade) -> Result<(), SceneError> {
         let ChangeMade { change, surface, pieces, ahead, prepared_contact, clock, before, kind } = made;
         let path = self.path.clone();
         let build_error = |message: String| SceneError::Build { path: path.clone(), message };
-        let surface = surface.ok_or_else(|| build_error("a cut body must render its own surface".into()))?;
         let d = self.discretization.as_ref();
+        let surface = match (surface, &self.input_surface) {
+            (Some(surface), _) => surface,
+            // Not rendering its own (DG refined, not cut): the input surface embedded again.
+            (None, Some(rest)) => cleave_core::EmbeddedSurface {
+                embedding: d
+                    .embed_surface(rest)
+                    .map_err(|e| build_error(format!("embedding the surface after a {kind}: {e}")))?,
+                rest_vertices: rest.clone(),
+                triangles: self.surface_triangles.clone(),
+                on_cut: self.surface_on_cut.clone(),
+                piece: self.surface_piece.clone(),
+            },
+            (None, None) => return Err(build_error("a cut body must render its own surface".into())),
+        };
         let mut pins = self.registration.resolve_pins(d, &self.pins).map_err(|e| build_error(e.to_string()))?;
         if self.pin_components.iter().any(|c| *c != [true; 3]) {
             pins.pinned_dofs = build::component_pins(self.registration.as_ref(), d, &self.pins, &self.pin_components)
@@ -469,7 +531,7 @@ impl Simulation {
         self.integrator
             .apply_topology_change_with(d, &change, constraints, prepared_contact)
             .map_err(|source| SceneError::Step { path: self.path.clone(), source })?;
-        self.probes = d.embed(&self.probe_points).map_err(|e| build_error(format!("probe after a cut: {e}")))?;
+        self.probes = d.embed(&self.probe_points).map_err(|e| build_error(format!("probe after a {kind}: {e}")))?;
         self.surface_triangles = surface.triangles;
         self.surface_on_cut = surface.on_cut;
         self.surface_piece = surface.piece;
@@ -564,6 +626,11 @@ impl Simulation {
         let impacts = self.rigid.as_ref().map(|r| r.impact_loads(d, &self.cuts.pieces)).unwrap_or_default();
         if !impacts.is_empty() {
             self.apply_static_impact(impacts)?;
+        }
+        if let Some(check) = self.refinement
+            && self.integrator.steps_taken().is_multiple_of(check.every)
+        {
+            self.apply_refinement(check.stress)?;
         }
         if let Some(check) = self.fracture.as_mut() {
             let steps = self.integrator.steps_taken();
