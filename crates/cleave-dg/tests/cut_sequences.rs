@@ -94,6 +94,7 @@ fn run_sequences(make: fn() -> DgMesh, seeds: std::ops::Range<u64>, label: &str)
         for k in 0..8 {
             let context = format!("{label} seed {seed} cut {k}");
             let before: Vec<Real> = (0..dg.num_frames()).map(|e| dg.element_volume(e)).collect();
+            let pieces_before = dg.pieces().len();
             let surface = random_surface(&mut random, &lo, &hi, k);
             let change = dg.cut(&surface).unwrap_or_else(|e| panic!("{context}: {e}"));
             cuts += 1;
@@ -103,6 +104,8 @@ fn run_sequences(make: fn() -> DgMesh, seeds: std::ops::Range<u64>, label: &str)
                 _ => (0..dg.num_frames() as u32).collect(),
             };
             let pieces = dg.pieces();
+            // Merging joins no pieces a cut made: a cut never lowers the count.
+            assert!(pieces.len() >= pieces_before, "{context}: {} pieces after {pieces_before}", pieces.len());
             let alone: Vec<bool> = {
                 let mut alone = vec![false; dg.num_frames()];
                 for piece in pieces.iter().filter(|p| p.elements.len() == 1) {

@@ -75,11 +75,11 @@ impl CompareBackend for DgBackend {
         true
     }
 
-    /// The box cut by `surface` with `Cuttable::cut` (what scenes call) while free, then the
-    /// discretization rebuilt on the cut mesh with the weak Dirichlet data (a DG body with weak
-    /// Dirichlet data is not cut itself: the data is not kept for a rebuild, docs/math/dg.md
-    /// §13). The rebuild has the same elements and DOFs as the cut body, so `change` maps onto
-    /// it; its face weights are the geometric ones.
+    /// The box cut by `surface` with `Cuttable::cut` (what scenes call). A clamp (zero data) is
+    /// kept by the cut (`DgMesh::clamped`, docs/math/dg.md §13.1): the box is built clamped and
+    /// cut, as a running body is. Other data is not kept: the box is cut while free and the
+    /// discretization rebuilt on the cut mesh with the data (same elements and DOFs, so
+    /// `change` maps onto it, but a fresh epoch and the geometric face weights).
     fn build_cut_box(
         &self,
         variant: &str,
@@ -90,6 +90,34 @@ impl CompareBackend for DgBackend {
     ) -> Result<CutProblem, CutError> {
         let options = parse_variant(variant).map_err(|e| CutError::Build(e.0))?;
         let mesh = PolyhedralMesh::grid(grid.origin, grid.h, grid.dims);
+        // A clamp (zero data at the corners and centroid of every face it holds) is kept by the cut: the box
+        // is built clamped and cut as a running body would be (same epoch, weights and η).
+        let clamp = mesh.faces.iter().enumerate().filter(|(_, f)| f.outer.is_none()).all(|(f, face)| {
+            let centroid = cleave_geometry::face_area_normal_centroid(&mesh, f).2;
+            !(dirichlet.region)(&centroid)
+                || (face.polygon.iter().map(|&v| mesh.vertices[v as usize]))
+                    .chain(std::iter::once(centroid))
+                    .all(|p| (dirichlet.value)(&p) == Vector3::zeros())
+        });
+        if clamp {
+            let mut dg = DgMesh::clamped(mesh, *material, options, dirichlet.region)
+                .map_err(|e| CutError::Build(e.to_string()))?;
+            let change = dg.cut(surface).map_err(|e| CutError::CannotCut(e.to_string()))?;
+            if change.remap == cleave_core::DofRemap::Identity {
+                return Err(CutError::CannotCut("the cut changes nothing: it misses the material".into()));
+            }
+            let (elements, search_seconds) = (dg.num_elements(), dg.penalty_search_seconds());
+            let dirichlet_load = dg.dirichlet_load().to_vec();
+            let built = BuiltProblem {
+                discretization: Box::new(dg),
+                prescribed: Vec::new(),
+                dirichlet_load,
+                elements,
+                search_seconds,
+            };
+            return Ok(CutProblem { built, change });
+        }
+        // Other data cannot be kept: cut the free box, then impose it on the cut mesh.
         let mut free = DgMesh::new(mesh, *material, options, None).map_err(|e| CutError::Build(e.to_string()))?;
         let change = free.cut(surface).map_err(|e| CutError::CannotCut(e.to_string()))?;
         if change.remap == cleave_core::DofRemap::Identity {

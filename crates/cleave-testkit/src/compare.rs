@@ -819,9 +819,14 @@ fn run_dynamic(backend: &dyn CompareBackend, variant: &str, grid: &BoxGrid, row:
                 + gravity_datum(built.discretization.as_ref(), &gravity);
             let p_before = momentum(built.discretization.as_ref(), integrator.velocities());
             let cut_box = backend.build_cut_box(variant, &material, grid, &dirichlet, &crack::cantilever(grid.h))?;
-            // The cut box must be the running box cut: every new node at its source's place.
+            // The cut box must be the running box cut: every new node at its source's place
+            // (to rounding: DG's restricted polynomials are computed, not copied).
             let rest = cut_box.change.remap.apply(built.discretization.rest_dofs());
-            if rest != cut_box.built.discretization.rest_dofs() {
+            let target = cut_box.built.discretization.rest_dofs();
+            let scale = target.iter().fold(1.0, |m: Real, v| m.max(v.abs()));
+            if rest.len() != target.len()
+                || rest.iter().zip(target).any(|(a, b)| (a - b).abs().is_nan() || (a - b).abs() > 1e-9 * scale)
+            {
                 return Err(RunError::Solve("the cut box is not the running box cut (rest positions differ)".into()));
             }
             let constraints = dirichlet_constraints(&cut_box.built);

@@ -212,10 +212,11 @@ impl MeshEdit {
         }
         let mut group = UnionFind::new(n);
         let mut group_volume = volumes.clone();
-        // A group's threshold is its members' largest: the merged element answers to the
-        // parent of its largest member, which may not be the sliver's.
+        // A group's threshold is its members' largest (so also that of its largest member's
+        // parent, which the merged element answers to): conservative where parents differ.
         let mut group_threshold: Vec<Real> = (0..n).map(threshold).collect();
-        let (mut merged, mut left) = (0, 0);
+        let mut group_size = vec![1usize; n];
+        let mut merged = 0;
         // A sliver's group grows until it passes its threshold or finds no neighbour.
         let mut pending: std::collections::VecDeque<usize> = slivers.into_iter().collect();
         let mut rounds = 0;
@@ -232,11 +233,8 @@ impl MeshEdit {
             // across a cut too.
             let mut shared: Vec<(usize, Real, bool)> = Vec::new();
             // The faces of every member of its group (a group of slivers looks past itself).
-            let members: Vec<usize> = if group_volume[root] > volumes[s] {
-                (0..n).filter(|&e| group.find(e) == root).collect()
-            } else {
-                vec![s]
-            };
+            let members: Vec<usize> =
+                if group_size[root] > 1 { (0..n).filter(|&e| group.find(e) == root).collect() } else { vec![s] };
             for (member, face) in members.iter().flat_map(|&m| element_faces[m].iter().map(move |f| (m, f))) {
                 let f = &self.mesh.faces[face.face];
                 let Some(outer) = f.outer else { continue };
@@ -255,6 +253,13 @@ impl MeshEdit {
                     None => shared.push((other_root, area, across_cut)),
                 }
             }
+            // Across a cut: any element of the group faces any element of the other across one.
+            for candidate in &mut shared {
+                candidate.2 |= facing_across_cut.iter().any(|&(a, b)| {
+                    let (ra, rb) = (group.find(a as usize), group.find(b as usize));
+                    (ra == root && rb == candidate.0) || (ra == candidate.0 && rb == root)
+                });
+            }
             // A neighbour not across a cut first; else one across a cut that ends inside them
             // (the crack then ends one element short: its faces inside the merged element go).
             let best = |across: bool| {
@@ -265,19 +270,28 @@ impl MeshEdit {
                     .map(|c| c.0)
             };
             let Some(target) = best(false).or_else(|| best(true)) else {
-                left += 1;
                 continue;
             };
             let total = group_volume[root] + group_volume[target];
             let bar = group_threshold[root].max(group_threshold[target]);
+            let size = group_size[root] + group_size[target];
             group.union(root, target);
             let joined = group.find(root);
             group_volume[joined] = total;
             group_threshold[joined] = bar;
+            group_size[joined] = size;
             merged += 1;
             // Check it again: still below its (maybe raised) threshold, it merges once more.
             pending.push_back(s);
         }
+        // Groups still below their threshold: no neighbour to merge into.
+        let mut short: Vec<usize> = (0..n).map(|e| group.find(e)).collect();
+        short.sort_unstable();
+        short.dedup();
+        let left = short
+            .iter()
+            .filter(|&&r| group_volume[r].partial_cmp(&group_threshold[r]).is_none_or(|o| o.is_lt()))
+            .count();
         if merged == 0 {
             return (0, left);
         }
