@@ -75,3 +75,41 @@ fn mls_surface_rows_reproduce_affine_fields() {
     });
     assert!(multi.count() > rows.len() / 2);
 }
+
+#[test]
+fn the_closed_form_gravity_load_equals_the_quadrature_on_cut_non_convex_cells() {
+    // `add_gravity_load` is closed form (∫ψ_i = L_00 δ_i0); `add_load` integrates the same
+    // constant force density by the signed cone rule. Degrees 1 and 2, the sliced bunny's
+    // non-convex cells, and after a plane and a triangle cut (non-convex children, merged
+    // slivers).
+    use cleave_core::{CutSurface, Cuttable};
+    for degree in [1, 2] {
+        let (mut dg, _) = sliced_bunny(0.04, degree);
+        let g = Vector3::new(0.3, -1.2, -9.81);
+        for stage in 0..3 {
+            match stage {
+                1 => {
+                    dg.cut(&CutSurface::Plane {
+                        point: Point3::new(0.0, 0.0, 0.05),
+                        normal: Vector3::new(0.2, 0.1, 1.0),
+                    })
+                    .unwrap();
+                }
+                2 => {
+                    let triangle =
+                        [Point3::new(-0.2, -0.2, 0.1), Point3::new(0.2, -0.1, 0.12), Point3::new(0.0, 0.01, 0.08)];
+                    dg.cut(&CutSurface::Triangles(vec![triangle])).unwrap();
+                }
+                _ => {}
+            }
+            let mut closed = vec![0.0; 3 * dg.num_nodes()];
+            dg.add_gravity_load(&g, &mut closed);
+            let mut quadrature = vec![0.0; closed.len()];
+            let rho = dg.material().density;
+            dg.add_load(&|_| g * rho, &mut quadrature);
+            let scale = quadrature.iter().fold(0.0, |m: Real, v| m.max(v.abs()));
+            let worst = closed.iter().zip(&quadrature).map(|(a, b)| (a - b).abs()).fold(0.0, Real::max);
+            assert!(worst < 1e-11 * scale, "degree {degree} stage {stage}: {worst:e} of {scale:e}");
+        }
+    }
+}
