@@ -561,6 +561,19 @@ impl DgMesh {
         self.bases[e].evaluate(&self.exps, p, values, gradients);
     }
 
+    /// `F = Σ_i d_i ⊗ g_i`: element `e`'s deformation gradient at its centroid for positions `x`
+    /// (its rotation frame, and the stress `Refinable` reads).
+    fn centroid_gradient(&self, e: usize, x: &[Real]) -> Matrix3<Real> {
+        let nb = self.exps.len();
+        let mut f = Matrix3::zeros();
+        for i in 0..nb {
+            let node = e * nb + i;
+            f +=
+                Vector3::new(x[3 * node], x[3 * node + 1], x[3 * node + 2]) * self.rotation_gradients[node].transpose();
+        }
+        f
+    }
+
     /// Element `e`'s outward faces as point loops.
     fn element_polygons(&self, e: usize) -> Vec<Vec<Point3<Real>>> {
         self.element_faces[e]
@@ -977,16 +990,7 @@ impl Discretization for DgMesh {
     }
 
     fn write_rotations(&self, x: &[Real], rotations: &mut [Matrix3<Real>]) -> RotationStats {
-        let nb = self.exps.len();
-        cleave_core::rotation::write_frame_rotations(rotations, 20, |e| {
-            let mut f = Matrix3::zeros();
-            for i in 0..nb {
-                let node = e * nb + i;
-                let d = Vector3::new(x[3 * node], x[3 * node + 1], x[3 * node + 2]);
-                f += d * self.rotation_gradients[node].transpose();
-            }
-            f
-        })
+        cleave_core::rotation::write_frame_rotations(rotations, 20, |e| self.centroid_gradient(e, x))
     }
 
     fn blocks(&self) -> &BlockSet {

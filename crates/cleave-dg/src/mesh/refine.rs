@@ -93,13 +93,7 @@ impl DgMesh {
     /// linear material, `σ = λ tr ε I + 2 μ ε` with `ε = sym(Rᵀ F) − I`, `F` the centroid
     /// gradient of its polynomial at positions `x`).
     pub fn element_stress(&self, e: usize, x: &[Real], rotation: &Matrix3<Real>) -> Matrix3<Real> {
-        let nb = self.exps.len();
-        let mut f = Matrix3::zeros();
-        for i in 0..nb {
-            let node = e * nb + i;
-            f +=
-                Vector3::new(x[3 * node], x[3 * node + 1], x[3 * node + 2]) * self.rotation_gradients[node].transpose();
-        }
+        let f = self.centroid_gradient(e, x);
         let f = rotation.transpose() * f;
         let strain = (f + f.transpose()) * 0.5 - Matrix3::identity();
         let (lambda, mu) = self.material.lame();

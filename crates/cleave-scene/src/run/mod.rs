@@ -415,58 +415,48 @@ impl Simulation {
         strength: Real,
         state: Option<(&[Real], &[Matrix3<Real>])>,
     ) -> Result<(), SceneError> {
-        let clock = Instant::now();
-        let path = self.path.clone();
-        let build_error = |message: String| SceneError::Build { path: path.clone(), message };
-        let before = (self.discretization.num_nodes(), self.discretization.num_frames(), self.cuts.pieces.len());
-        let (backend, time) = (self.info.backend.clone(), self.integrator.time());
-        // The body alone (a preparation holding it is waited for), borrowed beside the
-        // integrator's state: no copy of the positions in a step that checks.
-        self.body_mut()?;
-        let body = Arc::get_mut(&mut self.discretization).expect("body_mut made the body unshared");
-        let fracturable =
-            body.as_fracturable().ok_or_else(|| build_error(format!("the {backend} backend cannot fracture")))?;
-        let (x, rotations) = state.unwrap_or((self.integrator.positions(), self.integrator.rotations()));
-        let Some(change) = fracturable
-            .fracture(x, rotations, strength)
-            .map_err(|e| build_error(format!("fracture at t = {time} s: {e}")))?
-        else {
-            return Ok(());
-        };
-        let cuttable = body
-            .as_cuttable()
-            .ok_or_else(|| build_error(format!("the {backend} backend fractures but renders no pieces")))?;
-        let (surface, pieces) = (cuttable.surface(), cuttable.pieces());
-        self.prepared = None;
-        let ahead = None;
-        let prepared_contact = None;
-        self.finish_change(ChangeMade {
-            change,
-            surface,
-            pieces,
-            ahead,
-            prepared_contact,
-            clock,
-            before,
-            kind: "fracture",
+        self.apply_stress_change("fracture", state, |body, x, rotations| match body.as_fracturable() {
+            Some(fracturable) => fracturable.fracture(x, rotations, strength).map_err(|e| e.to_string()),
+            None => Err("the backend cannot fracture".into()),
         })
     }
 
     /// Refines the body where its stress exceeds `stress` (`Refinable`) and carries everything
     /// across as a cut does; recorded as a `refine` event.
     fn apply_refinement(&mut self, stress: Real) -> Result<(), SceneError> {
+        self.apply_stress_change("refine", None, |body, x, rotations| match body.as_refinable() {
+            Some(refinable) => refinable.refine(x, rotations, stress).map_err(|e| e.to_string()),
+            None => Err("the backend cannot refine".into()),
+        })
+    }
+
+    /// A topology change read from the stress (a fracture or a refinement, `kind` in errors and
+    /// the recording): `change` gets the body alone and the positions and frames (`state`, or
+    /// the integrator's: no copy in a step that checks), and everything is carried across as
+    /// a cut does. A body that renders no surface of its own gets the input surface embedded
+    /// again ([`finish_change`](Self::finish_change)).
+    fn apply_stress_change(
+        &mut self,
+        kind: &'static str,
+        state: Option<(&[Real], &[Matrix3<Real>])>,
+        change: impl FnOnce(
+            &mut dyn Discretization,
+            &[Real],
+            &[Matrix3<Real>],
+        ) -> Result<Option<cleave_core::TopologyChange>, String>,
+    ) -> Result<(), SceneError> {
         let clock = Instant::now();
         let path = self.path.clone();
         let build_error = |message: String| SceneError::Build { path: path.clone(), message };
         let before = (self.discretization.num_nodes(), self.discretization.num_frames(), self.cuts.pieces.len());
         let (backend, time) = (self.info.backend.clone(), self.integrator.time());
+        // The body alone (a preparation holding it is waited for), borrowed beside the
+        // integrator's state.
         self.body_mut()?;
         let body = Arc::get_mut(&mut self.discretization).expect("body_mut made the body unshared");
-        let refinable =
-            body.as_refinable().ok_or_else(|| build_error(format!("the {backend} backend cannot refine")))?;
-        let Some(change) = refinable
-            .refine(self.integrator.positions(), self.integrator.rotations(), stress)
-            .map_err(|e| build_error(format!("refinement at t = {time} s: {e}")))?
+        let (x, rotations) = state.unwrap_or((self.integrator.positions(), self.integrator.rotations()));
+        let Some(change) =
+            change(body, x, rotations).map_err(|e| build_error(format!("{kind} at t = {time} s ({backend}): {e}")))?
         else {
             return Ok(());
         };
@@ -483,7 +473,7 @@ impl Simulation {
             prepared_contact: None,
             clock,
             before,
-            kind: "refine",
+            kind,
         })
     }
 
